@@ -1,0 +1,28 @@
+"""Typed errors. Core code raises these; only the CLI turns them into messages and exit codes."""
+from __future__ import annotations
+
+from os import PathLike
+
+
+class MocapfillError(Exception):
+    """Base of every error mocapfill reports to a user as one line (exit code 1... see cli)."""
+
+
+class FormatError(MocapfillError):
+    """A file cannot be read or written: wrong suffix, corrupt, truncated, empty, unparsable.
+
+    The message always starts with the file name.
+    """
+
+    def __init__(self, path: str | PathLike | None, problem: str):
+        self.path = None if path is None else str(path)
+        self.problem = problem
+        super().__init__(problem if path is None else f"{path}: {problem}")
+
+
+class ParameterError(MocapfillError, ValueError):
+    """An option is outside its valid range (negative rank, mr >= 1, ...)."""
+
+
+class NothingToRepair(MocapfillError):
+    """The clip holds no marker that can be filled (every sample missing, no markers, ...)."""

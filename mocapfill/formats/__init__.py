@@ -1,0 +1,99 @@
+"""Readers and writers, dispatched by file suffix.
+
+Each format module exposes ``read(path, **options) -> Motion`` and
+``write(motion, path, **options) -> None``. A writer given a Motion whose ``source`` came
+from its own format patches a copy of the original file (only the samples that were
+missing and are now observed change); otherwise it writes a new file. ``write`` here
+makes every output atomic: the module writes a temporary file beside the target, which is
+renamed over it only when complete.
+
+A skeleton format (BVH, ASF/AMC) may also expose ``channels(motion)`` and
+``with_channels(motion, values, observed)`` so a repair can work in channel space and
+write back into the original motion lines.
+"""
+from __future__ import annotations
+
+import importlib
+import os
+import tempfile
+from pathlib import Path
+from types import ModuleType
+
+from ..errors import FormatError
+from ..motion import Motion
+
+# Suffix -> module. Plain dict, no global mutable plugin state.
+FORMATS: dict[str, str] = {
+    ".c3d": "mocapfill.formats.c3d",
+    ".trc": "mocapfill.formats.trc",
+    ".csv": "mocapfill.formats.csv",
+    ".txt": "mocapfill.formats.csv",
+    ".npz": "mocapfill.formats.npz",
+    ".bvh": "mocapfill.formats.bvh",
+    ".amc": "mocapfill.formats.acclaim",
+}
+
+# Formats that store marker positions (valid targets of `convert`).
+POSITION_FORMATS = (".c3d", ".trc", ".csv", ".txt", ".npz")
+
+# Known suffixes we do not read, with what to do instead.
+WRONG_SUFFIXES: dict[str, str] = {
+    ".asf": "an .asf holds only the skeleton; pass the .amc (its .asf is found beside it)",
+    ".mat": "MATLAB files are not read; export the trajectories to CSV or C3D",
+    ".tsv": "Qualisys TSV is not read; export C3D from QTM",
+    ".fbx": "FBX is not read; export BVH or C3D",
+    ".qtm": ".qtm project files are not read; export C3D from QTM",
+    ".x2d": "Vicon raw camera data is not read; export C3D from Nexus",
+    ".mot": "an OpenSim .mot holds coordinates or forces, not markers; pass the .trc",
+}
+
+
+def format_module(path: str | os.PathLike) -> ModuleType:
+    """The module that reads and writes files with this suffix."""
+    suffix = Path(path).suffix.lower()
+    if suffix in FORMATS:
+        return importlib.import_module(FORMATS[suffix])
+    if suffix in WRONG_SUFFIXES:
+        raise FormatError(path, WRONG_SUFFIXES[suffix])
+    known = ", ".join(sorted(FORMATS))
+    raise FormatError(path, f"unknown file type {suffix or '(no suffix)'!r}; known: {known}")
+
+
+def read(path: str | os.PathLike, **options) -> Motion:
+    """Read a motion file of any known format."""
+    path = Path(path)
+    module = format_module(path)
+    if not path.exists():
+        raise FormatError(path, "no such file")
+    if path.is_dir():
+        raise FormatError(path, "is a directory, not a file")
+    try:
+        return module.read(path, **options)
+    except FormatError:
+        raise
+    except MemoryError:
+        raise FormatError(path, "file declares more data than fits in memory") from None
+    except (ValueError, IndexError, KeyError, TypeError, OverflowError, UnicodeDecodeError,
+            EOFError, OSError) as exc:
+        # A parser tripping on a corrupt file: report it as the file's fault, one line.
+        raise FormatError(path, f"cannot parse ({type(exc).__name__}: {exc})") from None
+
+
+def write(motion: Motion, path: str | os.PathLike, **options) -> None:
+    """Write a motion file atomically; the suffix picks the format."""
+    path = Path(path)
+    module = format_module(path)
+    if motion.path is not None and path.exists() and path.resolve() == motion.path.resolve():
+        raise FormatError(path, "refusing to overwrite the input file")
+    directory = path.parent if str(path.parent) else Path(".")
+    if not directory.is_dir():
+        raise FormatError(path, f"output folder {directory} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    os.close(fd)
+    try:
+        module.write(motion, Path(tmp), **options)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise

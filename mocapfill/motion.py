@@ -1,0 +1,135 @@
+"""The one data model: a motion clip of marker trajectories and its occlusion mask.
+
+``observed`` is True where a sample is present. That is the only meaning of the mask in
+mocapfill. A marker sample is observed or missing as a whole (all three coordinates).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """Marker trajectories of one clip.
+
+    Attributes
+    ----------
+    positions
+        (frames, markers, 3) float64 coordinates in ``units``. Missing samples hold NaN.
+    observed
+        (frames, markers) bool, True where the sample is present.
+    labels
+        Marker names, one per marker.
+    rate
+        Frame rate in Hz.
+    units
+        Length unit of ``positions`` as the file states it ("mm", "m", ...).
+    fillable
+        (markers,) bool; False for points that are not markers (C3D model outputs such as
+        angles, forces, moments, powers) or that the user excluded. They are never filled
+        and never used as evidence for other markers.
+    source
+        Format-specific handle that a writer of the same format uses to patch the original
+        file instead of regenerating it (None for data built in memory).
+    path
+        The file the clip was read from, if any.
+    first_frame
+        Frame number of the first frame as the file counts it (1 in most formats).
+    """
+
+    positions: np.ndarray
+    observed: np.ndarray
+    labels: tuple[str, ...]
+    rate: float
+    units: str = "mm"
+    fillable: np.ndarray | None = None
+    source: Any = field(default=None, repr=False)
+    path: Path | None = None
+    first_frame: int = 1
+
+    def __post_init__(self) -> None:
+        positions = np.asarray(self.positions, dtype=np.float64)
+        if positions.ndim != 3 or positions.shape[2] != 3:
+            raise ValueError(f"positions must be (frames, markers, 3), got {positions.shape}")
+        observed = np.asarray(self.observed, dtype=bool)
+        if observed.shape != positions.shape[:2]:
+            raise ValueError(f"observed must be {positions.shape[:2]}, got {observed.shape}")
+        if len(self.labels) != positions.shape[1]:
+            raise ValueError(f"{len(self.labels)} labels for {positions.shape[1]} markers")
+        # A sample with a non-finite coordinate is missing, whatever the file said.
+        observed = observed & np.isfinite(positions).all(axis=2)
+        positions = np.where(observed[:, :, None], positions, np.nan)
+        fillable = (np.ones(positions.shape[1], bool) if self.fillable is None
+                    else np.asarray(self.fillable, dtype=bool))
+        if fillable.shape != (positions.shape[1],):
+            raise ValueError("fillable must have one entry per marker")
+        object.__setattr__(self, "positions", positions)
+        object.__setattr__(self, "observed", observed)
+        object.__setattr__(self, "labels", tuple(str(label) for label in self.labels))
+        object.__setattr__(self, "fillable", fillable)
+        object.__setattr__(self, "rate", float(self.rate))
+
+    @property
+    def n_frames(self) -> int:
+        return self.positions.shape[0]
+
+    @property
+    def n_markers(self) -> int:
+        return self.positions.shape[1]
+
+    @property
+    def duration_s(self) -> float:
+        return self.n_frames / self.rate if self.rate > 0 else float("nan")
+
+    def replace(self, **changes: Any) -> Motion:
+        """A copy with some fields changed (the source handle and path are kept)."""
+        return replace(self, **changes)
+
+    def with_positions(self, positions: np.ndarray, observed: np.ndarray) -> Motion:
+        """A copy holding new positions and mask, same labels, rate, units and source."""
+        return replace(self, positions=positions, observed=observed)
+
+    def matrix(self, markers: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The (3·markers × frames) matrix of the paper and its observed mask.
+
+        Rows 3j, 3j+1, 3j+2 hold x, y, z of the j-th selected marker; columns are frames.
+        Missing entries are NaN.
+        """
+        idx = np.arange(self.n_markers) if markers is None else np.asarray(markers)
+        sub = self.positions[:, idx, :]                      # (F, k, 3)
+        data = sub.transpose(1, 2, 0).reshape(3 * len(idx), self.n_frames)
+        mask = np.repeat(self.observed[:, idx].T, 3, axis=0)
+        return data, mask
+
+    def with_matrix(self, data: np.ndarray, mask: np.ndarray,
+                    markers: np.ndarray | None = None) -> Motion:
+        """A copy whose selected markers take the values of a (3·k × frames) matrix.
+
+        ``mask`` (3·k × frames) must hold whole samples; a sample is observed when its
+        x row is True.
+        """
+        idx = np.arange(self.n_markers) if markers is None else np.asarray(markers)
+        positions = self.positions.copy()
+        observed = self.observed.copy()
+        positions[:, idx, :] = data.reshape(len(idx), 3, self.n_frames).transpose(2, 0, 1)
+        observed[:, idx] = mask[0::3].T
+        return self.with_positions(positions, observed)
+
+
+def from_matrix(data: np.ndarray, observed: np.ndarray | None = None, *, rate: float = 120.0,
+                units: str = "mm", labels: list[str] | None = None) -> Motion:
+    """Build a Motion from a (3·markers × frames) matrix (the paper's layout)."""
+    data = np.asarray(data, dtype=np.float64)
+    if data.ndim != 2 or data.shape[0] % 3:
+        raise ValueError("matrix must be (3*markers, frames)")
+    n_markers = data.shape[0] // 3
+    if observed is None:
+        observed = np.isfinite(data)
+    observed = np.asarray(observed, bool).reshape(n_markers, 3, -1).all(axis=1).T
+    positions = data.reshape(n_markers, 3, -1).transpose(2, 0, 1)
+    labels = labels or [f"M{j + 1:03d}" for j in range(n_markers)]
+    return Motion(positions, observed, tuple(labels), rate, units)

@@ -1,0 +1,49 @@
+"""Completion methods behind one signature.
+
+Every method is ``fn(matrix, observed, **options) -> completed``:
+
+- ``matrix``: (m, n) float64, m = 3·markers (rows 3j..3j+2 are x, y, z of marker j),
+  n = frames. Entries where ``observed`` is False are undefined (NaN) and must be ignored.
+- ``observed``: (m, n) bool, True where the entry is data. Whole marker samples
+  (all three rows of a marker) are observed or missing together.
+- returns a new (m, n) float64 array, finite everywhere. Inputs are never modified.
+  A method may change observed entries (a robust method separates outliers); the repair
+  pipeline restores them afterwards.
+
+Methods do not print, do not read files and never depend on units: the pipeline hands
+them rows centred and scaled to unit RMS (see ``mocapfill.repair``).
+"""
+from __future__ import annotations
+
+import importlib
+from typing import Callable
+
+import numpy as np
+
+from ..errors import ParameterError
+
+Method = Callable[..., np.ndarray]
+
+# name -> "module:function"; imported lazily so `mocapfill --help` stays fast.
+METHODS: dict[str, str] = {
+    "trnn": "mocapfill.solvers.trnn:complete",
+    "trnn-paper": "mocapfill.solvers.trnn:complete_paper",
+    "linear": "mocapfill.solvers.interp:linear",
+    "spline": "mocapfill.solvers.interp:spline",
+    "pchip": "mocapfill.solvers.interp:pchip",
+    "pca": "mocapfill.solvers.pca:complete",
+    "svt": "mocapfill.solvers.svt:complete",
+    "tsmc": "mocapfill.solvers.tsmc:complete",
+    "ialm": "mocapfill.solvers.rpca:ialm",
+    "psvt": "mocapfill.solvers.rpca:psvt",
+}
+
+
+def get_method(name: str) -> Method:
+    """The completion function registered under ``name``."""
+    try:
+        module_name, func_name = METHODS[name].split(":")
+    except KeyError:
+        raise ParameterError(
+            f"unknown method {name!r}; choose one of {', '.join(METHODS)}") from None
+    return getattr(importlib.import_module(module_name), func_name)
