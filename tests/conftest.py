@@ -1,0 +1,32 @@
+"""Shared fixtures. Real files live in ../shared/data (never copied here); tests that need
+them skip with a reason when the folder is absent."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+def shared_file(relative: str) -> Path:
+    """Path of a file under ../shared/data, or skip the calling test when it is absent."""
+    path = SHARED_DATA / relative
+    if not path.exists():
+        pytest.skip(f"real-data file {relative} not available (../shared/data absent)")
+    return path
+
+
+def shared_files(folder: str, *suffixes: str) -> list[Path]:
+    """Files of a shared folder with the given suffixes (case-insensitive); [] when absent."""
+    root = SHARED_DATA / folder
+    if not root.is_dir():
+        return []
+    return sorted(p for p in root.iterdir() if p.suffix.lower() in suffixes)
+
+
+@pytest.fixture
+def shared_data() -> Path:
+    if not SHARED_DATA.is_dir():
+        pytest.skip("../shared/data absent")
+    return SHARED_DATA
