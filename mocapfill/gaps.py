@@ -1,0 +1,139 @@
+"""Gaps: finding them, describing them, and simulating them with the paper's protocols."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import NothingToRepair, ParameterError
+from .motion import Motion
+
+
+@dataclass(frozen=True)
+class Gap:
+    """One run of consecutive missing frames of one marker; ``stop`` is exclusive."""
+
+    marker: int
+    label: str
+    start: int
+    stop: int
+    n_frames_clip: int
+
+    @property
+    def length(self) -> int:
+        return self.stop - self.start
+
+    @property
+    def at_start(self) -> bool:
+        return self.start == 0
+
+    @property
+    def at_end(self) -> bool:
+        return self.stop == self.n_frames_clip
+
+    @property
+    def whole_clip(self) -> bool:
+        return self.at_start and self.at_end
+
+
+def missing_runs(observed: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) of every run of False in a 1-D observed mask."""
+    missing = np.concatenate(([False], ~np.asarray(observed, bool), [False]))
+    edges = np.flatnonzero(missing[1:] != missing[:-1])
+    return list(zip(edges[0::2].tolist(), edges[1::2].tolist()))
+
+
+def find_gaps(motion: Motion) -> list[Gap]:
+    """Every gap of every marker, in marker order then time order."""
+    return [Gap(j, motion.labels[j], start, stop, motion.n_frames)
+            for j in range(motion.n_markers)
+            for start, stop in missing_runs(motion.observed[:, j])]
+
+
+@dataclass(frozen=True)
+class MarkerSummary:
+    """Missing-data summary of one marker: "LASI: 120/4300 (2.8%), 3 gaps, longest 80"."""
+
+    label: str
+    missing: int
+    frames: int
+    gaps: int
+    longest: int
+    rate: float
+
+    @property
+    def percent(self) -> float:
+        return 100.0 * self.missing / self.frames if self.frames else 0.0
+
+    @property
+    def longest_s(self) -> float:
+        return self.longest / self.rate if self.rate > 0 else float("nan")
+
+
+def summarise(motion: Motion) -> list[MarkerSummary]:
+    """Per-marker missing count, number of gaps and longest gap."""
+    rows = []
+    for j, label in enumerate(motion.labels):
+        runs = missing_runs(motion.observed[:, j])
+        rows.append(MarkerSummary(label, int((~motion.observed[:, j]).sum()), motion.n_frames,
+                                  len(runs), max((b - a for a, b in runs), default=0),
+                                  motion.rate))
+    return rows
+
+
+def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = None,
+                  markers: int = 10, seed: int | None = None) -> Motion:
+    """Remove samples with one of the paper's two protocols, on top of existing gaps.
+
+    Parameters
+    ----------
+    mr
+        "Random missing": in every frame a fraction ``mr`` of the markers (rounded) is
+        removed, chosen at random among the candidate markers.
+    ml
+        "Continuous missing": ``markers`` random markers each lose ``ml`` consecutive
+        frames. The run starts at a random interior frame so it never touches the clip's
+        ends (end gaps are left unfilled by default and would not be scored).
+    markers
+        Number of markers hit by the continuous protocol.
+    seed
+        Seed of the random generator; the same seed gives the same gaps.
+
+    Only fillable markers with at least one observed sample are candidates, and a
+    marker never loses its last observed sample.
+    """
+    if (mr is None) == (ml is None):
+        raise ParameterError("give exactly one of mr (random missing) or ml (continuous missing)")
+    rng = np.random.default_rng(seed)
+    observed = motion.observed.copy()
+    candidates = np.flatnonzero(motion.fillable & observed.any(axis=0))
+    if candidates.size == 0:
+        raise NothingToRepair("no marker with observed samples to remove")
+    n_frames = motion.n_frames
+    if mr is not None:
+        if not 0 <= mr < 1:
+            raise ParameterError(f"mr must be in [0, 1), got {mr}")
+        k = int(round(mr * candidates.size))
+        if k:
+            # argsort of uniform noise: an independent random k-subset in every frame.
+            order = np.argsort(rng.random((n_frames, candidates.size)), axis=1)[:, :k]
+            hit = np.zeros((n_frames, candidates.size), bool)
+            np.put_along_axis(hit, order, True, axis=1)
+            observed[:, candidates] &= ~hit
+    else:
+        if ml < 1:
+            raise ParameterError(f"ml must be a positive number of frames, got {ml}")
+        if ml > n_frames - 2:
+            raise ParameterError(f"ml = {ml} frames does not fit inside a {n_frames}-frame clip")
+        if markers < 1:
+            raise ParameterError(f"markers must be positive, got {markers}")
+        chosen = rng.choice(candidates, size=min(markers, candidates.size), replace=False)
+        for j in chosen:
+            start = int(rng.integers(1, n_frames - ml))
+            observed[start:start + ml, j] = False
+    # Keep at least one observed sample per marker that had one.
+    lost = motion.observed.any(axis=0) & ~observed.any(axis=0)
+    for j in np.flatnonzero(lost):
+        first = int(np.flatnonzero(motion.observed[:, j])[0])
+        observed[first, j] = True
+    return motion.with_positions(motion.positions, observed)

@@ -1,0 +1,187 @@
+"""The repair pipeline: choose markers, normalise, solve, restore observed, apply the gap
+policy, report.
+
+Observed samples are sacred: whatever a solver returns, every sample observed in the input
+comes back bit-identical, and only samples the policy allows are filled.
+"""
+from __future__ import annotations
+
+import fnmatch
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import NothingToRepair, ParameterError
+from .gaps import Gap, find_gaps
+from .motion import Motion
+from .scaling import UnitScale
+from .solvers import get_method
+
+ENDS = ("leave", "hold", "extrapolate")
+
+# Gap statuses as reported (one per gap).
+FILLED = "filled"
+LEFT_TOO_LONG = "left: too long"
+LEFT_END = "left: end"
+LEFT_WHOLE = "left: whole-clip missing"
+LEFT_NOT_SELECTED = "left: not selected"
+LEFT_NOT_MARKER = "left: not a marker"
+
+
+@dataclass(frozen=True)
+class RepairOptions:
+    """What to fill and how.
+
+    Attributes
+    ----------
+    method
+        Completion method name (see ``mocapfill.solvers.METHODS``).
+    solver_options
+        Keyword arguments for the method (rank, lam, mu, rho, eta0, tol, max_iter, ...).
+    max_gap_frames
+        Gaps longer than this are left missing; None fills every length.
+    ends
+        Gaps touching the first or last frame: "leave" them missing (default), "hold" the
+        nearest observed value, or "extrapolate" with the method's fill clamped to the
+        marker's observed range widened by ``END_MARGIN`` of that range on each side.
+    markers, exclude
+        Names or shell globs: only markers matching ``markers`` (all when empty) and not
+        matching ``exclude`` are filled. Every marker still serves as evidence.
+    """
+
+    method: str = "trnn"
+    solver_options: dict = field(default_factory=dict)
+    max_gap_frames: int | None = None
+    ends: str = "leave"
+    markers: tuple[str, ...] = ()
+    exclude: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.ends not in ENDS:
+            raise ParameterError(f"ends must be one of {', '.join(ENDS)}, got {self.ends!r}")
+        if self.max_gap_frames is not None and self.max_gap_frames < 0:
+            raise ParameterError(f"max gap must be ≥ 0 frames, got {self.max_gap_frames}")
+        get_method(self.method)  # fail early on an unknown method
+
+
+END_MARGIN = 0.1
+
+
+@dataclass(frozen=True)
+class GapOutcome:
+    """What happened to one gap."""
+
+    gap: Gap
+    status: str
+    method: str
+
+
+@dataclass(frozen=True)
+class RepairResult:
+    """The repaired clip and a record of every gap of the input."""
+
+    motion: Motion
+    gaps: list[GapOutcome]
+    seconds: float
+
+    @property
+    def filled(self) -> int:
+        return sum(o.status == FILLED for o in self.gaps)
+
+    @property
+    def left(self) -> int:
+        return len(self.gaps) - self.filled
+
+
+def _matches(label: str, patterns: tuple[str, ...]) -> bool:
+    return any(fnmatch.fnmatchcase(label, p) for p in patterns)
+
+
+def _gap_status(gap: Gap, motion: Motion, options: RepairOptions) -> str:
+    label = gap.label
+    if not motion.fillable[gap.marker]:
+        return LEFT_NOT_MARKER
+    if gap.whole_clip:
+        return LEFT_WHOLE
+    if (options.markers and not _matches(label, options.markers)) or \
+            _matches(label, options.exclude):
+        return LEFT_NOT_SELECTED
+    if options.max_gap_frames is not None and gap.length > options.max_gap_frames:
+        return LEFT_TOO_LONG
+    if (gap.at_start or gap.at_end) and options.ends == "leave":
+        return LEFT_END
+    return FILLED
+
+
+def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trnn",
+                    **solver_options) -> np.ndarray:
+    """Complete a (3·markers × frames) matrix in the unit-invariant scale.
+
+    Observed entries of the result equal ``matrix`` exactly.
+    """
+    scale = UnitScale.fit(matrix, observed)
+    solved = get_method(method)(scale.forward(np.where(observed, matrix, 0.0)), observed,
+                                **solver_options)
+    return np.where(observed, matrix, scale.inverse(solved))
+
+
+def _fill_ends(values: np.ndarray, observed: np.ndarray, gap: Gap, ends: str) -> None:
+    """Rewrite an end gap of one marker (frames × 3, in place) for the end policy."""
+    seen = values[observed]
+    if ends == "hold":
+        anchor = values[gap.stop] if gap.at_start else values[gap.start - 1]
+        values[gap.start:gap.stop] = anchor
+    else:  # extrapolate: keep the method's fill, never beyond the observed range + margin
+        low, high = seen.min(axis=0), seen.max(axis=0)
+        margin = END_MARGIN * (high - low)
+        np.clip(values[gap.start:gap.stop], low - margin, high + margin,
+                out=values[gap.start:gap.stop])
+
+
+def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult:
+    """Fill the gaps of a clip.
+
+    Parameters
+    ----------
+    motion
+        The clip; its observed samples are never changed.
+    options
+        Method, solver settings and gap policy.
+
+    Returns
+    -------
+    RepairResult
+        The repaired Motion (same source handle, so writers can patch the input file) and
+        one outcome per gap of the input.
+    """
+    options = options or RepairOptions()
+    started = time.perf_counter()
+    if motion.n_frames < 2:
+        raise NothingToRepair(f"a clip of {motion.n_frames} frame(s) cannot be repaired")
+    gaps = find_gaps(motion)
+    outcomes = [GapOutcome(g, _gap_status(g, motion, options), options.method) for g in gaps]
+    to_fill = [o.gap for o in outcomes if o.status == FILLED]
+    if not to_fill:
+        return RepairResult(motion, outcomes, time.perf_counter() - started)
+
+    evidence = np.flatnonzero(motion.fillable & motion.observed.any(axis=0))
+    matrix, observed = motion.matrix(evidence)
+    solved = complete_matrix(matrix, observed, options.method, rate=motion.rate,
+                             **options.solver_options)
+    filled = motion.with_matrix(solved, np.ones_like(observed), evidence).positions
+
+    positions = motion.positions.copy()
+    new_observed = motion.observed.copy()
+    for gap in to_fill:
+        values = filled[:, gap.marker, :]
+        if gap.at_start or gap.at_end:
+            _fill_ends(values, motion.observed[:, gap.marker], gap, options.ends)
+        positions[gap.start:gap.stop, gap.marker] = values[gap.start:gap.stop]
+        new_observed[gap.start:gap.stop, gap.marker] = True
+    # Sacred: observed samples come from the input, bit for bit.
+    positions[motion.observed] = motion.positions[motion.observed]
+    if not np.isfinite(positions[new_observed]).all():
+        raise NothingToRepair(f"method {options.method!r} returned non-finite values")
+    return RepairResult(motion.with_positions(positions, new_observed), outcomes,
+                        time.perf_counter() - started)

@@ -1,0 +1,107 @@
+"""Per-marker interpolation along time: the classical gap fillers used as baselines.
+
+Each row of the matrix (one coordinate of one marker) is interpolated through its observed
+samples as a function of the frame index:
+
+- :func:`linear` — piecewise linear interpolation.
+- :func:`spline` — cubic spline through the observed samples (``scipy.interpolate.CubicSpline``
+  with its default "not-a-knot" end conditions; de Boor, *A Practical Guide to Splines*,
+  Springer 1978/2001, ch. IV).
+- :func:`pchip` — piecewise cubic Hermite interpolation with Fritsch–Carlson monotone slopes
+  (Fritsch & Carlson, "Monotone piecewise cubic interpolation", SIAM J. Numer. Anal. 17(2),
+  1980; ``scipy.interpolate.PchipInterpolator``): no overshoot, monotone between samples.
+
+Conventions shared by the three methods:
+
+- gaps at the start or end of a clip (before the first / after the last observed sample of a
+  row) are *held* at the nearest observed value — extrapolating a polynomial past the data
+  diverges quickly and is never what a gap filler should do;
+- a row with no observed sample is filled with 0 (the pipeline excludes such markers);
+- with too few samples for the requested interpolant (one sample, or two/three for the
+  cubic spline), the row falls back to the best lower-order interpolant (constant, linear).
+
+Observed entries are returned unchanged.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.interpolate import CubicSpline, PchipInterpolator
+
+from ._linalg import linear_fill
+
+__all__ = ["linear", "spline", "pchip"]
+
+
+def _check(matrix: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    matrix = np.asarray(matrix, dtype=np.float64)
+    observed = np.asarray(observed, dtype=bool)
+    if matrix.ndim != 2 or observed.shape != matrix.shape:
+        raise ValueError(
+            f"matrix and observed must be 2-D of equal shape, got {matrix.shape} and "
+            f"{observed.shape}")
+    return matrix, observed
+
+
+def _interpolate(matrix, observed, make) -> np.ndarray:
+    """Fill every row's interior gaps with ``make(t_obs, y_obs)(t)``; hold the ends."""
+    matrix, observed = _check(matrix, observed)
+    out = linear_fill(matrix, observed)  # ends held, empty rows 0, interior linear
+    t = np.arange(matrix.shape[1], dtype=np.float64)
+    for row in range(matrix.shape[0]):
+        mask = observed[row]
+        idx = np.flatnonzero(mask)
+        if idx.size < 2 or idx.size == mask.size:
+            continue
+        interior = ~mask
+        interior[: idx[0]] = False
+        interior[idx[-1] + 1:] = False
+        if not interior.any():
+            continue
+        f = make(t[idx], matrix[row, idx])
+        if f is not None:
+            out[row, interior] = f(t[interior])
+    return out
+
+
+def linear(matrix: np.ndarray, observed: np.ndarray, *, rate: float | None = None,
+           seed: int | None = None) -> np.ndarray:
+    """Piecewise linear interpolation of each row through its observed samples.
+
+    ``rate`` and ``seed`` (shared pipeline options) are accepted and ignored.
+    """
+    matrix, observed = _check(matrix, observed)
+    return linear_fill(matrix, observed)
+
+
+def spline(matrix: np.ndarray, observed: np.ndarray, *, bc_type: str = "not-a-knot",
+           rate: float | None = None, seed: int | None = None) -> np.ndarray:
+    """Cubic-spline interpolation of each row through its observed samples.
+
+    Parameters
+    ----------
+    bc_type
+        End condition of ``scipy.interpolate.CubicSpline`` ("not-a-knot", the default, reproduces
+        a cubic polynomial exactly; "natural" sets the end second derivatives to zero).
+    rate, seed
+        Shared pipeline options, ignored.
+    """
+    if bc_type not in ("not-a-knot", "natural", "clamped"):
+        raise ValueError(f"bc_type must be 'not-a-knot', 'natural' or 'clamped', got {bc_type!r}")
+
+    def make(t_obs, y_obs):
+        if t_obs.size < 4:
+            return None
+        return CubicSpline(t_obs, y_obs, bc_type=bc_type, extrapolate=False)
+
+    return _interpolate(matrix, observed, make)
+
+
+def pchip(matrix: np.ndarray, observed: np.ndarray, *, rate: float | None = None,
+          seed: int | None = None) -> np.ndarray:
+    """Monotone piecewise-cubic Hermite (PCHIP) interpolation of each row.
+
+    ``rate`` and ``seed`` (shared pipeline options) are accepted and ignored.
+    """
+    return _interpolate(
+        matrix, observed,
+        lambda t_obs, y_obs: PchipInterpolator(t_obs, y_obs, extrapolate=False))
