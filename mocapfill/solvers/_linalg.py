@@ -1,0 +1,91 @@
+"""Numerical building blocks shared by the completion methods.
+
+- :func:`soft_threshold` — entrywise shrinkage, the proximal map of ``tau·‖·‖₁``.
+- :func:`svt` — singular value thresholding, the proximal map of ``tau·‖·‖_*``
+  (Cai, Candès & Shen 2010, eq. 2.2).
+- :func:`second_difference_matrix`, :func:`second_difference_eigenvalues`,
+  :func:`temporal_solve` — the temporal-stability term ``(mu/2)·‖X Tᵀ‖_F²`` with ``T`` the
+  second difference along time under Neumann (reflecting) boundary conditions:
+  ``T`` is the n×n matrix with rows ``[1, -1, 0, ...]``, ``[..., 1, -2, 1, ...]``,
+  ``[..., 0, -1, 1]``. ``T`` is symmetric and diagonalised by the orthonormal DCT-II
+  matrix ``C``: ``T = Cᵀ diag(-4 sin²(iπ/(2n))) C``, hence
+  ``TᵀT = Cᵀ diag(16 sin⁴(iπ/(2n))) C``, i = 0..n-1.
+- :func:`linear_fill` — row-wise linear interpolation along time, ends held.
+
+Nothing here modifies its inputs.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.fft import dct, idct
+
+
+def soft_threshold(x: np.ndarray, tau: float | np.ndarray) -> np.ndarray:
+    """``sign(x)·max(|x| - tau, 0)`` entrywise (a new array)."""
+    x = np.asarray(x, dtype=np.float64)
+    return np.sign(x) * np.maximum(np.abs(x) - tau, 0.0)
+
+
+def svt(x: np.ndarray, tau: float) -> tuple[np.ndarray, int]:
+    """Singular value thresholding ``D_tau(x) = U diag(max(σ - tau, 0)) Vᵀ``.
+
+    Returns the shrunk matrix and its rank (the number of singular values above ``tau``).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    u, s, vt = np.linalg.svd(x, full_matrices=False)
+    s = s - tau
+    rank = int(np.count_nonzero(s > 0))
+    if rank == 0:
+        return np.zeros_like(x), 0
+    return (u[:, :rank] * s[:rank]) @ vt[:rank], rank
+
+
+def second_difference_matrix(n: int) -> np.ndarray:
+    """The dense n×n Neumann second-difference matrix ``T`` (for tests and small problems)."""
+    t = np.zeros((n, n))
+    if n < 2:
+        return t
+    idx = np.arange(n)
+    t[idx, idx] = -2.0
+    t[idx[:-1], idx[:-1] + 1] = 1.0
+    t[idx[1:], idx[1:] - 1] = 1.0
+    t[0, 0] = t[-1, -1] = -1.0
+    return t
+
+
+def second_difference_eigenvalues(n: int) -> np.ndarray:
+    """Eigenvalues of ``TᵀT`` in DCT-II order: ``16 sin⁴(iπ/(2n))``, i = 0..n-1."""
+    i = np.arange(n, dtype=np.float64)
+    return 16.0 * np.sin(i * np.pi / (2.0 * n)) ** 4
+
+
+def temporal_solve(b: np.ndarray, eta: float, mu: float) -> np.ndarray:
+    """Solve ``X (eta·I + mu·TᵀT) = B`` for X, i.e. ``X = B Cᵀ Γ C`` with
+    ``Γ = diag(1 / (eta + mu·16 sin⁴(iπ/(2n))))``, row-wise via the orthonormal DCT-II.
+
+    ``b`` is (m, n) with time along axis 1; needs ``eta > 0`` (or ``mu > 0`` and ``eta ≥ 0``
+    with no constant component, which callers never rely on).
+    """
+    b = np.asarray(b, dtype=np.float64)
+    n = b.shape[-1]
+    gamma = 1.0 / (eta + mu * second_difference_eigenvalues(n))
+    return idct(dct(b, type=2, norm="ortho", axis=-1) * gamma, type=2, norm="ortho", axis=-1)
+
+
+def linear_fill(matrix: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """Row-wise linear interpolation of the observed samples along time (axis 1).
+
+    Gaps at either end of a row are held at the nearest observed value; a row with no
+    observed sample becomes 0. Returns a new finite float64 array.
+    """
+    matrix = np.asarray(matrix, dtype=np.float64)
+    observed = np.asarray(observed, dtype=bool)
+    out = np.where(observed, matrix, 0.0)
+    t = np.arange(matrix.shape[1], dtype=np.float64)
+    for row in range(matrix.shape[0]):
+        mask = observed[row]
+        if mask.all() or not mask.any():
+            continue
+        # np.interp holds the first/last value beyond the data range.
+        out[row, ~mask] = np.interp(t[~mask], t[mask], matrix[row, mask])
+    return out
