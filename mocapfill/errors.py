@@ -5,7 +5,7 @@ from os import PathLike
 
 
 class MocapfillError(Exception):
-    """Base of every error mocapfill reports to a user as one line (exit code 1... see cli)."""
+    """Base of every error mocapfill reports to a user as one line (see cli for exit codes)."""
 
 
 class FormatError(MocapfillError):
@@ -14,9 +14,10 @@ class FormatError(MocapfillError):
     The message always starts with the file name.
     """
 
-    def __init__(self, path: str | PathLike | None, problem: str):
+    def __init__(self, path: str | PathLike | None, problem: str, *, exit_code: int = 123):
         self.path = None if path is None else str(path)
         self.problem = problem
+        self.exit_code = exit_code  # 2 when the user named a wrong file (usage), else 123
         super().__init__(problem if path is None else f"{path}: {problem}")
 
 

@@ -54,9 +54,10 @@ def format_module(path: str | os.PathLike) -> ModuleType:
     if suffix in FORMATS:
         return importlib.import_module(FORMATS[suffix])
     if suffix in WRONG_SUFFIXES:
-        raise FormatError(path, WRONG_SUFFIXES[suffix])
+        raise FormatError(path, WRONG_SUFFIXES[suffix], exit_code=2)
     known = ", ".join(sorted(FORMATS))
-    raise FormatError(path, f"unknown file type {suffix or '(no suffix)'!r}; known: {known}")
+    raise FormatError(path, f"unknown file type {suffix or '(no suffix)'!r}; known: {known}",
+                      exit_code=2)
 
 
 def read(path: str | os.PathLike, **options) -> Motion:
@@ -64,9 +65,9 @@ def read(path: str | os.PathLike, **options) -> Motion:
     path = Path(path)
     module = format_module(path)
     if not path.exists():
-        raise FormatError(path, "no such file")
+        raise FormatError(path, "no such file", exit_code=2)
     if path.is_dir():
-        raise FormatError(path, "is a directory, not a file")
+        raise FormatError(path, "is a directory, not a file", exit_code=2)
     try:
         return module.read(path, **options)
     except FormatError:

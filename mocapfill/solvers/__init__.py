@@ -11,7 +11,7 @@ Every method is ``fn(matrix, observed, **options) -> completed``:
   pipeline restores them afterwards.
 
 Methods do not print, do not read files and never depend on units: the pipeline hands
-them rows centred and scaled to unit RMS (see ``mocapfill.repair``).
+them rows centred and scaled to unit RMS (see ``mocapfill.pipeline``).
 """
 from __future__ import annotations
 

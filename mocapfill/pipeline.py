@@ -1,5 +1,5 @@
-"""The repair pipeline: choose markers, normalise, solve, restore observed, apply the gap
-policy, report.
+"""The repair pipeline (`mocapfill.repair` is its entry point): choose markers, normalise,
+solve, restore observed, apply the gap policy, report.
 
 Observed samples are sacred: whatever a solver returns, every sample observed in the input
 comes back bit-identical, and only samples the policy allows are filled.

@@ -1,0 +1,336 @@
+"""The command line. The only module that imports click; it parses, calls the core, reports.
+
+Exit codes: 0 ok; 1 ``--check`` found gaps left unfilled; 2 usage (bad option, parameter
+out of range, missing input, unknown file type); 123 a file could not be read, repaired or
+written (one line on stderr names it); 130 interrupted.
+Heavy imports (numpy, scipy) happen inside the commands so ``mocapfill --help`` is quick.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import click
+
+EXIT_CHECK_FAILED = 1
+EXIT_USAGE = 2
+EXIT_FAILED = 123
+EXIT_INTERRUPTED = 130
+
+METHOD_NAMES = ("trnn", "trnn-paper", "linear", "spline", "pchip", "pca", "svt", "tsmc",
+                "ialm", "psvt")
+
+
+def _fail(message: str, code: int) -> None:
+    click.echo(f"mocapfill: error: {message}", err=True)
+    sys.exit(code)
+
+
+class _Group(click.Group):
+    """Turns mocapfill's typed errors into one line and an exit code, never a traceback."""
+
+    def invoke(self, ctx: click.Context):
+        from .errors import FormatError, MocapfillError, ParameterError
+
+        try:
+            return super().invoke(ctx)
+        except ParameterError as exc:
+            _fail(str(exc), EXIT_USAGE)
+        except FormatError as exc:
+            _fail(str(exc), exc.exit_code)
+        except MocapfillError as exc:
+            _fail(str(exc), EXIT_FAILED)
+        except KeyboardInterrupt:
+            _fail("interrupted", EXIT_INTERRUPTED)
+        except OSError as exc:  # disk full, permission denied, ...
+            name = f"{exc.filename}: " if exc.filename else ""
+            _fail(f"{name}{exc.strerror or exc}", EXIT_FAILED)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="mocapfill")
+def main() -> None:
+    """Repair gaps in motion-capture marker data (C3D, TRC, CSV, BVH, ASF/AMC).
+
+    Exit codes: 0 ok, 1 --check found unfilled gaps, 2 usage error, 123 a file failed,
+    130 interrupted.
+    """
+
+
+# ---------------------------------------------------------------- shared option helpers
+
+_zero_option = click.option(
+    "--zero-is-missing", type=click.Choice(["auto", "on", "off"]), default="auto",
+    show_default=True,
+    help="C3D only: treat samples at exactly x = y = z = 0 as missing. auto = on for "
+         "Qualisys files, which store gaps that way.")
+
+
+def _read(path: Path, zero_is_missing: str = "auto"):
+    from . import formats
+
+    options = {"zero_is_missing": zero_is_missing} if path.suffix.lower() == ".c3d" else {}
+    return formats.read(path, **options)
+
+
+def _parse_max_gap(text: str | None, rate: float) -> int | None:
+    """'40' frames or '0.5s' seconds -> frames (None = unlimited)."""
+    from .errors import ParameterError
+
+    if text is None:
+        return None
+    raw = text.strip().lower()
+    try:
+        if raw.endswith("s"):
+            frames = float(raw[:-1]) * rate
+        else:
+            frames = float(raw)
+            if frames != int(frames):
+                raise ValueError
+    except ValueError:
+        raise ParameterError(f"--max-gap must be frames (40) or seconds (0.5s), got {text!r}") \
+            from None
+    if frames < 0:
+        raise ParameterError(f"--max-gap must be ≥ 0, got {text!r}")
+    return int(round(frames))
+
+
+def _summary_line(result, in_path: Path, out_path: Path) -> str:
+    from collections import Counter
+
+    left = Counter(o.status for o in result.gaps if o.status != "filled")
+    detail = ", ".join(f"{n} {status.split(': ', 1)[-1]}" for status, n in sorted(left.items()))
+    return (f"{in_path} -> {out_path}: {result.filled} gaps filled, {result.left} left"
+            f"{f' ({detail})' if detail else ''} in {result.seconds:.2f} s")
+
+
+# ---------------------------------------------------------------- repair
+
+
+@main.command()
+@click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
+@click.argument("out_path", metavar="OUT", type=click.Path(path_type=Path))
+@click.option("--method", type=click.Choice(METHOD_NAMES), default="trnn", show_default=True,
+              help="Completion method. trnn: our converged TrNN (default); trnn-paper: the "
+                   "published algorithm and settings; linear/spline/pchip: interpolation "
+                   "along time; pca: Gløersen & Federolf 2016; svt, tsmc, ialm, psvt: the "
+                   "paper's comparison methods.")
+@click.option("--rank", type=int, default=None,
+              help="Truncated rank r (number of singular values not penalised). Default: "
+                   "min(15, estimated rank).")
+@click.option("--lam", type=float, default=None,
+              help="λ, weight of the sparse-outlier term (unitless; data are scaled to unit "
+                   "RMS before solving). Default 100/sqrt(max(m, n)).")
+@click.option("--mu", type=float, default=None,
+              help="μ, weight of the temporal smoothness term (unitless). Default 100.")
+@click.option("--rho", type=float, default=None,
+              help="ρ > 1, growth factor of the penalty η per iteration. Default 1.2 "
+                   "(trnn) / 1.4 (trnn-paper).")
+@click.option("--eta0", type=float, default=None,
+              help="η₀ > 0, initial penalty. Default 1e-2 (trnn) / 1e-5 (trnn-paper).")
+@click.option("--tol", type=float, default=None,
+              help="ε, relative stopping tolerance. Default 1e-5 (trnn) / 1e-4 (trnn-paper).")
+@click.option("--max-iter", type=int, default=None, help="Iteration cap. Default 500.")
+@click.option("--max-gap", default=None, metavar="FRAMES|SECONDSs",
+              help="Leave gaps longer than this missing (and report them): frames (40) or "
+                   "seconds (0.5s). Default: fill every length.")
+@click.option("--ends", type=click.Choice(["leave", "hold", "extrapolate"]), default="leave",
+              show_default=True,
+              help="Gaps touching the first or last frame: leave them missing, hold the "
+                   "nearest observed value, or extrapolate (clamped to the marker's observed "
+                   "range ± 10%).")
+@click.option("--markers", multiple=True, metavar="NAME|GLOB",
+              help="Fill only these markers (repeatable; shell globs like 'L*'). All others "
+                   "still serve as evidence.")
+@click.option("--exclude", multiple=True, metavar="NAME|GLOB",
+              help="Never fill these markers (repeatable; globs).")
+@click.option("--gaps-report", type=click.Path(path_type=Path), default=None,
+              help="Write one row per gap (marker, first/last frame, length in frames and "
+                   "seconds, method, status) to FILE.csv or FILE.json.")
+@click.option("--check", is_flag=True,
+              help="Exit with code 1 when any gap is left unfilled.")
+@_zero_option
+def repair(in_path: Path, out_path: Path, method: str, rank, lam, mu, rho, eta0, tol, max_iter,
+           max_gap, ends, markers, exclude, gaps_report, check, zero_is_missing) -> None:
+    """Fill the gaps of IN and write OUT; only missing samples change.
+
+    The output format follows OUT's suffix; a same-format repair patches a copy of IN
+    (C3D: only the four words of each filled sample change, residual word 0 marks them).
+    IN is never modified; OUT is written atomically.
+    """
+    from . import formats
+    from .pipeline import RepairOptions
+    from .pipeline import repair as run_repair
+
+    motion = _read(in_path, zero_is_missing)
+    solver_options = _solver_options(rank=rank, lam=lam, mu=mu, rho=rho, eta0=eta0, tol=tol,
+                                     max_iter=max_iter)
+    options = RepairOptions(method=method, solver_options=solver_options,
+                            max_gap_frames=_parse_max_gap(max_gap, motion.rate), ends=ends,
+                            markers=tuple(markers), exclude=tuple(exclude))
+    result = run_repair(motion, options)
+    formats.write(result.motion, out_path)
+    if gaps_report is not None:
+        from .report import write_gaps_report
+
+        write_gaps_report(result, gaps_report)
+    click.echo(_summary_line(result, in_path, out_path), err=True)
+    if check and result.left:
+        sys.exit(EXIT_CHECK_FAILED)
+
+
+def _solver_options(**values) -> dict:
+    from .errors import ParameterError
+
+    options = {k: v for k, v in values.items() if v is not None}
+    positive = ("lam", "eta0", "tol", "max_iter", "rank")
+    for key in positive:
+        if key in options and not options[key] > 0:
+            raise ParameterError(f"--{key.replace('_', '-')} must be > 0, got {options[key]}")
+    if "mu" in options and options["mu"] < 0:
+        raise ParameterError(f"--mu must be ≥ 0, got {options['mu']}")
+    if "rho" in options and not options["rho"] > 1:
+        raise ParameterError(f"--rho must be > 1, got {options['rho']}")
+    return options
+
+
+# ---------------------------------------------------------------- simulate
+
+
+@main.command()
+@click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
+@click.argument("out_path", metavar="OUT", type=click.Path(path_type=Path))
+@click.option("--mr", type=float, default=None,
+              help="Random missing: fraction in [0, 1) of the markers removed in every frame.")
+@click.option("--ml", type=int, default=None,
+              help="Continuous missing: number of consecutive frames removed from each of "
+                   "--markers random markers (interior runs, never touching the clip ends).")
+@click.option("--markers", "n_markers", type=int, default=10, show_default=True,
+              help="Number of markers hit by --ml.")
+@click.option("--seed", type=int, default=None,
+              help="Random seed; the same seed gives the same gaps.")
+@_zero_option
+def simulate(in_path: Path, out_path: Path, mr, ml, n_markers, seed, zero_is_missing) -> None:
+    """Add gaps to IN with the paper's protocols (on top of its own gaps), write OUT."""
+    from . import formats
+    from .gaps import simulate_gaps
+
+    motion = _read(in_path, zero_is_missing)
+    gapped = simulate_gaps(motion, mr=mr, ml=ml, markers=n_markers, seed=seed)
+    formats.write(gapped, out_path)
+    removed = int((motion.observed & ~gapped.observed).sum())
+    click.echo(f"{in_path} -> {out_path}: {removed} samples removed", err=True)
+
+
+# ---------------------------------------------------------------- rank
+
+
+@main.command()
+@click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
+@click.option("--theta", type=float, default=1e-3, show_default=True,
+              help="Threshold on consecutive singular-value gaps, relative to the largest "
+                   "singular value of the centred, unit-RMS matrix.")
+@click.option("--json", "as_json", is_flag=True,
+              help='Print {"rank": r, "singular_values": [...]}.')
+@_zero_option
+def rank(in_path: Path, theta: float, as_json: bool, zero_is_missing: str) -> None:
+    """Estimate the rank of IN's marker matrix (the paper's estimate, unit-invariant)."""
+    from .rank import estimate_rank
+
+    motion = _read(in_path, zero_is_missing)
+    matrix, observed = motion.matrix(_evidence_markers(motion))
+    estimate = estimate_rank(matrix, observed, theta=theta)
+    if as_json:
+        click.echo(json.dumps({"rank": estimate.rank,
+                               "singular_values": [float(s) for s in
+                                                   estimate.singular_values]}))
+    else:
+        click.echo(f"rank: {estimate.rank}")
+
+
+def _evidence_markers(motion):
+    import numpy as np
+
+    from .errors import NothingToRepair
+
+    markers = np.flatnonzero(motion.fillable & motion.observed.any(axis=0))
+    if markers.size == 0:
+        raise NothingToRepair(f"{motion.path}: no marker has any observed sample")
+    return markers
+
+
+# ---------------------------------------------------------------- score
+
+
+@main.command()
+@click.argument("truth_path", metavar="TRUTH", type=click.Path(path_type=Path))
+@click.argument("repaired_path", metavar="REPAIRED", type=click.Path(path_type=Path))
+@click.option("--gapped", "gapped_path", type=click.Path(path_type=Path), default=None,
+              help="The gapped file that was repaired: its missing samples are scored. "
+                   "Default: the samples that differ between TRUTH and REPAIRED.")
+@click.option("--json", "as_json", is_flag=True,
+              help='Print {"rmse", "rmse_3d", "rmse_mm", "rmse_3d_mm", "missing_samples"}.')
+@_zero_option
+def score(truth_path: Path, repaired_path: Path, gapped_path, as_json: bool,
+          zero_is_missing: str) -> None:
+    """Error of REPAIRED against TRUTH on the missing samples.
+
+    rmse is the paper's RMSE over missing coordinates; rmse_3d the RMS 3-D marker error;
+    both in file units and in mm.
+    """
+    from .metrics import score as compute
+
+    truth = _read(truth_path, zero_is_missing)
+    repaired = _read(repaired_path, zero_is_missing)
+    gapped = None if gapped_path is None else _read(gapped_path, zero_is_missing)
+    result = compute(truth, repaired, gapped)
+    if as_json:
+        click.echo(json.dumps(result.as_dict()))
+        return
+    unit = truth.units
+    mm = ("" if result.rmse_mm is None
+          else f" = {result.rmse_mm:.3f} mm (3-D {result.rmse_3d_mm:.3f} mm)")
+    click.echo(f"RMSE {result.rmse:.6g} {unit} (3-D {result.rmse_3d:.6g} {unit}){mm} over "
+               f"{result.missing_samples} missing samples"
+               + (f"; {result.unfilled_samples} left unfilled" if result.unfilled_samples
+                  else ""))
+
+
+# ---------------------------------------------------------------- info
+
+
+@main.command()
+@click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
+@click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
+@_zero_option
+def info(in_path: Path, as_json: bool, zero_is_missing: str) -> None:
+    """Per-marker missing samples n/N (%), number of gaps, longest gap (frames, seconds)."""
+    from .report import format_info, info_dict
+
+    motion = _read(in_path, zero_is_missing)
+    if as_json:
+        click.echo(json.dumps(info_dict(motion)))
+    else:
+        click.echo(format_info(motion))
+
+
+# ---------------------------------------------------------------- convert
+
+
+@main.command()
+@click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
+@click.argument("out_path", metavar="OUT", type=click.Path(path_type=Path))
+@_zero_option
+def convert(in_path: Path, out_path: Path, zero_is_missing: str) -> None:
+    """Convert IN to OUT's format (by suffix), keeping gaps as gaps."""
+    from . import formats
+
+    motion = _read(in_path, zero_is_missing)
+    formats.write(motion, out_path)
+    click.echo(f"{in_path} -> {out_path}: {motion.n_markers} markers, {motion.n_frames} frames",
+               err=True)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,82 @@
+"""Human and machine-readable reports: per-marker gap tables and per-gap repair records."""
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+from .errors import FormatError
+from .gaps import summarise
+from .motion import Motion
+
+
+def info_dict(motion: Motion) -> dict:
+    """The per-marker table of ``mocapfill info --json``."""
+    rows = summarise(motion)
+    return {
+        "file": None if motion.path is None else str(motion.path),
+        "frames": motion.n_frames, "markers": motion.n_markers, "rate_hz": motion.rate,
+        "units": motion.units,
+        "missing_samples": int((~motion.observed).sum()),
+        "per_marker": [{"marker": r.label, "missing": r.missing, "frames": r.frames,
+                        "percent": round(r.percent, 3), "gaps": r.gaps,
+                        "longest_gap_frames": r.longest,
+                        "longest_gap_s": round(r.longest_s, 4),
+                        "fillable": bool(f)}
+                       for r, f in zip(rows, motion.fillable)],
+    }
+
+
+def format_info(motion: Motion) -> str:
+    """A table: marker, missing n/N (%), gaps, longest gap in frames and seconds."""
+    rows = summarise(motion)
+    width = max([6] + [len(r.label) for r in rows])
+    total = int((~motion.observed).sum())
+    lines = [f"{motion.path or 'clip'}: {motion.n_markers} markers × {motion.n_frames} frames "
+             f"at {motion.rate:g} Hz ({motion.duration_s:.2f} s), units {motion.units}; "
+             f"{total}/{motion.observed.size} samples missing "
+             f"({100 * total / max(motion.observed.size, 1):.1f}%)",
+             f"{'marker':<{width}}  {'missing':>16}  {'gaps':>4}  {'longest':>15}"]
+    for row, fillable in zip(rows, motion.fillable):
+        note = "" if fillable else "  (not a marker: never filled)"
+        lines.append(f"{row.label:<{width}}  {f'{row.missing}/{row.frames}':>9} "
+                     f"({row.percent:5.1f}%)  {row.gaps:>4}  "
+                     f"{row.longest:>5} fr {row.longest_s:6.3f} s{note}")
+    return "\n".join(lines)
+
+
+GAP_FIELDS = ("marker", "first_frame", "last_frame", "length_frames", "length_s", "method",
+              "status")
+
+
+def gap_rows(result) -> list[dict]:
+    """One dict per gap of a RepairResult; frames numbered as the file numbers them."""
+    motion = result.motion
+    rows = []
+    for outcome in result.gaps:
+        gap = outcome.gap
+        rows.append({"marker": gap.label, "first_frame": motion.first_frame + gap.start,
+                     "last_frame": motion.first_frame + gap.stop - 1,
+                     "length_frames": gap.length,
+                     "length_s": round(gap.length / motion.rate, 6) if motion.rate else None,
+                     "method": outcome.method if outcome.status == "filled" else "",
+                     "status": outcome.status})
+    return rows
+
+
+def write_gaps_report(result, path: Path) -> None:
+    """Write the per-gap report as CSV or JSON (by suffix)."""
+    rows = gap_rows(result)
+    suffix = path.suffix.lower()
+    if suffix == ".json":
+        text = json.dumps({"gaps": rows}, indent=1)
+    elif suffix == ".csv":
+        buffer = io.StringIO()
+        writer = csv.DictWriter(buffer, fieldnames=GAP_FIELDS, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+        text = buffer.getvalue()
+    else:
+        raise FormatError(path, "gaps report must be .csv or .json", exit_code=2)
+    path.write_text(text)

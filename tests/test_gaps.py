@@ -1,0 +1,56 @@
+import numpy as np
+import pytest
+
+from mocapfill.errors import ParameterError
+from mocapfill.gaps import find_gaps, missing_runs, simulate_gaps, summarise
+
+from .helpers import smooth_clip, with_gap
+
+
+def test_missing_runs_finds_interior_and_end_runs():
+    observed = np.array([0, 1, 1, 0, 0, 1, 0], bool)
+    assert missing_runs(observed) == [(0, 1), (3, 5), (6, 7)]
+
+
+def test_find_gaps_flags_clip_ends():
+    motion = with_gap(with_gap(smooth_clip(50, 3), 1, 0, 5), 2, 10, 20)
+    gaps = find_gaps(motion)
+    assert [(g.label, g.start, g.stop, g.at_start, g.at_end) for g in gaps] == [
+        ("MK01", 0, 5, True, False), ("MK02", 10, 20, False, False)]
+
+
+def test_summary_counts_missing_gaps_and_longest():
+    motion = with_gap(with_gap(smooth_clip(100, 2), 0, 10, 40), 0, 60, 65)
+    row = summarise(motion)[0]
+    assert (row.missing, row.gaps, row.longest) == (35, 2, 30)
+    assert row.longest_s == pytest.approx(30 / 120)
+
+
+def test_random_missing_removes_fraction_of_markers_in_every_frame():
+    motion = smooth_clip(200, 10)
+    gapped = simulate_gaps(motion, mr=0.4, seed=3)
+    removed = (~gapped.observed).sum(axis=1)
+    assert (removed == 4).sum() >= 199  # one frame may keep a marker's last sample
+
+
+def test_continuous_missing_removes_interior_runs_of_ml_frames():
+    motion = smooth_clip(300, 15)
+    gapped = simulate_gaps(motion, ml=40, markers=10, seed=7)
+    gaps = find_gaps(gapped)
+    assert len(gaps) == 10
+    assert all(g.length == 40 and not g.at_start and not g.at_end for g in gaps)
+
+
+def test_simulation_is_reproducible_with_a_seed_and_keeps_existing_gaps():
+    motion = with_gap(smooth_clip(300, 15), 0, 100, 120)
+    a = simulate_gaps(motion, ml=30, seed=11)
+    b = simulate_gaps(motion, ml=30, seed=11)
+    np.testing.assert_array_equal(a.observed, b.observed)
+    assert not a.observed[100:120, 0].any()
+
+
+@pytest.mark.parametrize("kwargs", [dict(mr=1.0), dict(mr=-0.1), dict(ml=0), dict(ml=10_000),
+                                    dict(), dict(mr=0.2, ml=10)])
+def test_absurd_simulation_parameters_are_rejected(kwargs):
+    with pytest.raises(ParameterError):
+        simulate_gaps(smooth_clip(100, 5), **kwargs)

@@ -1,0 +1,114 @@
+import numpy as np
+import pytest
+
+from mocapfill.errors import NothingToRepair, ParameterError
+from mocapfill.motion import Motion
+from mocapfill.pipeline import RepairOptions, repair
+
+from .helpers import smooth_clip, with_gap
+
+
+def gapped_clip() -> tuple[Motion, Motion]:
+    truth = smooth_clip(400, 12)
+    gapped = with_gap(with_gap(with_gap(truth, 2, 100, 160), 5, 200, 230), 7, 40, 45)
+    return truth, gapped
+
+
+def test_repair_fills_interior_gaps_closer_than_linear_interpolation():
+    truth, gapped = gapped_clip()
+    missing = ~gapped.observed
+    errors = {}
+    for method in ("trnn", "linear"):
+        filled = repair(gapped, RepairOptions(method=method)).motion
+        assert filled.observed.all()
+        errors[method] = np.sqrt(np.mean((filled.positions - truth.positions)[missing] ** 2))
+    assert errors["trnn"] < errors["linear"] / 2
+
+
+@pytest.mark.parametrize("method", ["trnn", "trnn-paper"])
+def test_observed_samples_are_returned_bit_identical(method):
+    _, gapped = gapped_clip()
+    filled = repair(gapped, RepairOptions(method=method)).motion
+    np.testing.assert_array_equal(filled.positions[gapped.observed],
+                                  gapped.positions[gapped.observed])
+
+
+def test_complete_clip_comes_back_unchanged():
+    truth = smooth_clip(100, 5)
+    result = repair(truth)
+    assert result.gaps == []
+    np.testing.assert_array_equal(result.motion.positions, truth.positions)
+
+
+def test_repair_is_unit_invariant():
+    truth, gapped = gapped_clip()
+    in_m = gapped.replace(positions=gapped.positions / 1000.0, units="m")
+    mm = repair(gapped).motion.positions
+    m = repair(in_m).motion.positions * 1000.0
+    np.testing.assert_allclose(m, mm, rtol=1e-6, atol=1e-6 * np.abs(mm).max())
+
+
+def test_marker_missing_for_the_whole_clip_is_left_missing_and_reported():
+    _, gapped = gapped_clip()
+    gapped = with_gap(gapped, 9, 0, gapped.n_frames)
+    result = repair(gapped)
+    assert not result.motion.observed[:, 9].any()
+    statuses = {(o.gap.label, o.status) for o in result.gaps}
+    assert ("MK09", "left: whole-clip missing") in statuses
+
+
+def test_end_gaps_are_left_by_default_and_held_on_request():
+    truth = smooth_clip(200, 8)
+    gapped = with_gap(truth, 3, 180, 200)
+    left = repair(gapped).motion
+    assert not left.observed[180:, 3].any()
+    held = repair(gapped, RepairOptions(ends="hold")).motion
+    np.testing.assert_array_equal(held.positions[180:, 3],
+                                  np.repeat(truth.positions[179:180, 3], 20, axis=0))
+
+
+def test_extrapolated_end_stays_within_observed_range_plus_margin():
+    truth = smooth_clip(200, 8)
+    gapped = with_gap(truth, 3, 150, 200)
+    filled = repair(gapped, RepairOptions(ends="extrapolate")).motion
+    seen = truth.positions[:150, 3]
+    span = seen.max(axis=0) - seen.min(axis=0)
+    assert (filled.positions[150:, 3] <= seen.max(axis=0) + 0.1 * span + 1e-9).all()
+    assert (filled.positions[150:, 3] >= seen.min(axis=0) - 0.1 * span - 1e-9).all()
+
+
+def test_max_gap_leaves_longer_gaps_missing():
+    _, gapped = gapped_clip()
+    result = repair(gapped, RepairOptions(max_gap_frames=30))
+    assert not result.motion.observed[100:160, 2].any()
+    assert result.motion.observed[200:230, 5].all()
+    assert sum(o.status == "left: too long" for o in result.gaps) == 1
+
+
+def test_markers_and_exclude_restrict_what_is_filled():
+    _, gapped = gapped_clip()
+    only = repair(gapped, RepairOptions(markers=("MK0[25]",))).motion
+    assert only.observed[:, [2, 5]].all() and not only.observed[40:45, 7].any()
+    without = repair(gapped, RepairOptions(exclude=("MK02",))).motion
+    assert not without.observed[100:160, 2].any() and without.observed[:, 5].all()
+
+
+def test_non_marker_points_are_never_filled():
+    _, gapped = gapped_clip()
+    fillable = np.ones(gapped.n_markers, bool)
+    fillable[2] = False
+    result = repair(gapped.replace(fillable=fillable))
+    assert not result.motion.observed[100:160, 2].any()
+
+
+def test_one_frame_clip_is_rejected():
+    clip = smooth_clip(1, 4)
+    with pytest.raises(NothingToRepair):
+        repair(clip)
+
+
+@pytest.mark.parametrize("kwargs", [dict(ends="wrap"), dict(max_gap_frames=-1),
+                                    dict(method="magic")])
+def test_bad_options_are_rejected(kwargs):
+    with pytest.raises(ParameterError):
+        RepairOptions(**kwargs)
