@@ -1,0 +1,126 @@
+"""The command line: exit codes, one-line errors, atomic outputs, JSON shapes."""
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from mocapfill import formats
+from mocapfill.cli import main
+
+from .helpers import smooth_clip, with_gap
+
+
+@pytest.fixture
+def clip_files(tmp_path):
+    truth = smooth_clip(300, 10)
+    gapped = with_gap(with_gap(truth, 1, 50, 110), 4, 150, 190)
+    formats.write(truth, tmp_path / "truth.npz")
+    formats.write(gapped, tmp_path / "gapped.npz")
+    return tmp_path
+
+
+def run(*args):
+    result = CliRunner().invoke(main, [str(a) for a in args])
+    return result
+
+
+def test_repair_writes_a_complete_file_and_a_summary(clip_files):
+    result = run("repair", clip_files / "gapped.npz", clip_files / "out.npz")
+    assert result.exit_code == 0, result.output
+    assert "2 gaps filled" in result.stderr
+    assert formats.read(clip_files / "out.npz").observed.all()
+
+
+def test_simulate_repair_score_chain_beats_linear_interpolation(clip_files):
+    d = clip_files
+    assert run("simulate", d / "truth.npz", d / "sim.npz", "--ml", "40", "--seed", "1",
+               "--markers", "5").exit_code == 0
+    errors = {}
+    for method in ("trnn", "linear"):
+        assert run("repair", d / "sim.npz", d / f"{method}.npz", "--method", method
+                   ).exit_code == 0
+        scored = run("score", d / "truth.npz", d / f"{method}.npz", "--gapped", d / "sim.npz",
+                     "--json")
+        errors[method] = json.loads(scored.stdout)
+    assert errors["trnn"]["missing_samples"] == 5 * 40
+    assert errors["trnn"]["rmse_mm"] < errors["linear"]["rmse_mm"]
+    assert errors["trnn"]["rmse_3d"] == pytest.approx(errors["trnn"]["rmse"] * np.sqrt(3))
+
+
+def test_rank_json_has_rank_and_singular_values(clip_files):
+    result = run("rank", clip_files / "gapped.npz", "--json")
+    payload = json.loads(result.stdout)
+    assert set(payload) == {"rank", "singular_values"}
+    assert 1 <= payload["rank"] <= 30 and len(payload["singular_values"]) == 30
+
+
+def test_info_reports_per_marker_gaps(clip_files):
+    result = run("info", clip_files / "gapped.npz", "--json")
+    rows = {r["marker"]: r for r in json.loads(result.stdout)["per_marker"]}
+    assert rows["MK01"]["missing"] == 60 and rows["MK01"]["longest_gap_frames"] == 60
+    assert rows["MK04"]["longest_gap_s"] == pytest.approx(40 / 120, abs=1e-4)
+    text = run("info", clip_files / "gapped.npz").stdout
+    assert "MK01" in text and "60/300" in text
+
+
+def test_gaps_report_lists_every_gap(clip_files):
+    report = clip_files / "gaps.csv"
+    run("repair", clip_files / "gapped.npz", clip_files / "o.npz", "--max-gap", "0.4s",
+        "--gaps-report", report)
+    lines = report.read_text().splitlines()
+    assert lines[0] == "marker,first_frame,last_frame,length_frames,length_s,method,status"
+    assert lines[1:] == ["MK01,51,110,60,0.5,,left: too long",
+                         "MK04,151,190,40,0.333333,trnn,filled"]
+
+
+def test_check_exits_1_when_gaps_are_left(clip_files):
+    result = run("repair", clip_files / "gapped.npz", clip_files / "o.npz", "--max-gap", "10",
+                 "--check")
+    assert result.exit_code == 1
+
+
+@pytest.mark.parametrize("args, code, words", [
+    (["repair", "missing.npz", "o.npz"], 2, "no such file"),
+    (["repair", "gapped.npz", "o.xyz"], 2, "unknown file type"),
+    (["repair", "gapped.npz", "o.npz", "--rank", "-3"], 2, "--rank must be > 0"),
+    (["repair", "gapped.npz", "o.npz", "--max-gap", "soon"], 2, "--max-gap"),
+    (["simulate", "truth.npz", "s.npz", "--mr", "1.5"], 2, "mr must be in [0, 1)"),
+    (["info", "skeleton.asf"], 2, "pass the .amc"),
+    (["info", "broken.npz"], 123, "broken.npz"),
+])
+def test_bad_input_gives_one_line_error_and_exit_code(clip_files, monkeypatch, args, code, words):
+    monkeypatch.chdir(clip_files)
+    (clip_files / "broken.npz").write_bytes(b"not a zip file at all")
+    result = run(*args)
+    assert result.exit_code == code
+    assert words in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert "Traceback" not in result.output
+    assert not (clip_files / "o.npz").exists() and not (clip_files / "s.npz").exists()
+
+
+def test_failed_write_leaves_no_partial_output(clip_files, monkeypatch):
+    from mocapfill.formats import npz
+
+    def explode(motion, path, **_):
+        path.write_bytes(b"half")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(npz, "write", explode)
+    result = run("repair", clip_files / "gapped.npz", clip_files / "o.npz")
+    assert result.exit_code == 123
+    assert list(clip_files.glob("*o.npz*")) == []
+
+
+def test_input_file_is_never_modified(clip_files):
+    before = (clip_files / "gapped.npz").read_bytes()
+    run("repair", clip_files / "gapped.npz", clip_files / "o.npz")
+    assert (clip_files / "gapped.npz").read_bytes() == before
+
+
+def test_every_command_has_help_with_units():
+    for command in ("repair", "simulate", "rank", "score", "info", "convert"):
+        result = run(command, "--help")
+        assert result.exit_code == 0 and "Usage" in result.output
+    assert "seconds" in run("repair", "--help").output
