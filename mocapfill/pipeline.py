@@ -27,6 +27,13 @@ LEFT_END = "left: end"
 LEFT_WHOLE = "left: whole-clip missing"
 LEFT_NOT_SELECTED = "left: not selected"
 LEFT_NOT_MARKER = "left: not a marker"
+REJECTED_JUMP = "rejected: jump"
+
+# Default jump threshold: the larger of this floor (mm; MoCapTools rejects spline fills
+# missing a linear forward prediction by > 40 mm) and JUMP_FACTOR times the marker's
+# largest observed second difference (its own worst acceleration × dt²).
+JUMP_FLOOR_MM = 40.0
+JUMP_FACTOR = 5.0
 
 
 @dataclass(frozen=True)
@@ -48,6 +55,13 @@ class RepairOptions:
     markers, exclude
         Names or shell globs: only markers matching ``markers`` (all when empty) and not
         matching ``exclude`` are filled. Every marker still serves as evidence.
+    max_jump_mm
+        Jump check. At each end of a gap that has observed samples, the fill's first
+        sample is compared with the constant-velocity prediction from the last two observed
+        samples; a deviation above the threshold rejects the whole gap's fill (it stays
+        missing, reported as "rejected: jump"). None = the larger of 40 mm and 5 × the
+        marker's largest observed second difference; 0 or inf disables the check. In file
+        units when the units are unknown.
     """
 
     method: str = "trnn"
@@ -56,12 +70,15 @@ class RepairOptions:
     ends: str = "leave"
     markers: tuple[str, ...] = ()
     exclude: tuple[str, ...] = ()
+    max_jump_mm: float | None = None
 
     def __post_init__(self) -> None:
         if self.ends not in ENDS:
             raise ParameterError(f"ends must be one of {', '.join(ENDS)}, got {self.ends!r}")
         if self.max_gap_frames is not None and self.max_gap_frames < 0:
             raise ParameterError(f"max gap must be ≥ 0 frames, got {self.max_gap_frames}")
+        if self.max_jump_mm is not None and not self.max_jump_mm >= 0:
+            raise ParameterError(f"max jump must be ≥ 0 mm, got {self.max_jump_mm}")
         get_method(self.method)  # fail early on an unknown method
 
 
@@ -139,6 +156,33 @@ def _fill_ends(values: np.ndarray, observed: np.ndarray, gap: Gap, ends: str) ->
                 out=values[gap.start:gap.stop])
 
 
+def _jump_threshold(values: np.ndarray, observed: np.ndarray, options: RepairOptions,
+                    mm_per_unit: float) -> float:
+    """Largest allowed boundary deviation for one marker, in file units."""
+    if options.max_jump_mm is not None:
+        return options.max_jump_mm / mm_per_unit if options.max_jump_mm > 0 else np.inf
+    seen = values[observed]
+    # Second differences over consecutive observed frames only.
+    both = observed[2:] & observed[1:-1] & observed[:-2]
+    accel = np.linalg.norm(values[2:] - 2 * values[1:-1] + values[:-2], axis=1)[both]
+    worst = float(accel.max()) if accel.size else 0.0
+    return max(JUMP_FLOOR_MM / mm_per_unit, JUMP_FACTOR * worst) if seen.size else np.inf
+
+
+def _boundary_jump(values: np.ndarray, observed: np.ndarray, gap: Gap) -> float:
+    """Worst deviation of the fill from the constant-velocity prediction at the gap ends."""
+    worst = 0.0
+    for edge, inside, step in ((gap.start - 1, gap.start, -1), (gap.stop, gap.stop - 1, 1)):
+        if not 0 <= edge < len(values) or not observed[edge]:
+            continue
+        before = edge + step  # second observed sample on the same side, if any
+        velocity = (values[edge] - values[before]) if (0 <= before < len(values)
+                                                       and observed[before]) else 0.0
+        predicted = values[edge] + velocity
+        worst = max(worst, float(np.linalg.norm(values[inside] - predicted)))
+    return worst
+
+
 def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult:
     """Fill the gaps of a clip.
 
@@ -161,8 +205,7 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
         raise NothingToRepair(f"a clip of {motion.n_frames} frame(s) cannot be repaired")
     gaps = find_gaps(motion)
     outcomes = [GapOutcome(g, _gap_status(g, motion, options), options.method) for g in gaps]
-    to_fill = [o.gap for o in outcomes if o.status == FILLED]
-    if not to_fill:
+    if not any(o.status == FILLED for o in outcomes):
         return RepairResult(motion, outcomes, time.perf_counter() - started)
 
     evidence = np.flatnonzero(motion.fillable & motion.observed.any(axis=0))
@@ -171,12 +214,26 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
                              **options.solver_options)
     filled = motion.with_matrix(solved, np.ones_like(observed), evidence).positions
 
+    from .metrics import mm_per_unit
+
+    unit_mm = mm_per_unit(motion.units) or 1.0
     positions = motion.positions.copy()
     new_observed = motion.observed.copy()
-    for gap in to_fill:
+    thresholds: dict[int, float] = {}
+    for index, outcome in enumerate(outcomes):
+        if outcome.status != FILLED:
+            continue
+        gap = outcome.gap
+        marker_observed = motion.observed[:, gap.marker]
         values = filled[:, gap.marker, :]
         if gap.at_start or gap.at_end:
-            _fill_ends(values, motion.observed[:, gap.marker], gap, options.ends)
+            _fill_ends(values, marker_observed, gap, options.ends)
+        if gap.marker not in thresholds:
+            thresholds[gap.marker] = _jump_threshold(motion.positions[:, gap.marker],
+                                                     marker_observed, options, unit_mm)
+        if _boundary_jump(values, marker_observed, gap) > thresholds[gap.marker]:
+            outcomes[index] = GapOutcome(gap, REJECTED_JUMP, options.method)
+            continue
         positions[gap.start:gap.stop, gap.marker] = values[gap.start:gap.stop]
         new_observed[gap.start:gap.stop, gap.marker] = True
     # Sacred: observed samples come from the input, bit for bit.

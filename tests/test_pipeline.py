@@ -70,7 +70,8 @@ def test_end_gaps_are_left_by_default_and_held_on_request():
 def test_extrapolated_end_stays_within_observed_range_plus_margin():
     truth = smooth_clip(200, 8)
     gapped = with_gap(truth, 3, 150, 200)
-    filled = repair(gapped, RepairOptions(ends="extrapolate")).motion
+    filled = repair(gapped, RepairOptions(ends="extrapolate", max_jump_mm=0)).motion
+    assert filled.observed.all()
     seen = truth.positions[:150, 3]
     span = seen.max(axis=0) - seen.min(axis=0)
     assert (filled.positions[150:, 3] <= seen.max(axis=0) + 0.1 * span + 1e-9).all()
@@ -112,3 +113,27 @@ def test_one_frame_clip_is_rejected():
 def test_bad_options_are_rejected(kwargs):
     with pytest.raises(ParameterError):
         RepairOptions(**kwargs)
+
+
+def teleport(matrix, observed, **_):
+    """A broken method: fills every missing entry 1000 units away."""
+    return np.where(observed, matrix, 1000.0)
+
+
+def test_fill_with_a_boundary_jump_is_rejected_and_reported(monkeypatch):
+    from mocapfill import solvers
+
+    monkeypatch.setitem(solvers.METHODS, "teleport", "tests.test_pipeline:teleport")
+    _, gapped = gapped_clip()
+    result = repair(gapped, RepairOptions(method="teleport"))
+    assert {o.status for o in result.gaps} == {"rejected: jump"}
+    assert result.motion.observed.sum() == gapped.observed.sum()
+    disabled = repair(gapped, RepairOptions(method="teleport", max_jump_mm=0))
+    assert disabled.motion.observed.all()
+
+
+def test_smooth_fills_pass_the_default_jump_check():
+    _, gapped = gapped_clip()
+    for method in ("trnn", "spline", "linear"):
+        result = repair(gapped, RepairOptions(method=method))
+        assert all(o.status == "filled" for o in result.gaps), method
