@@ -80,6 +80,12 @@ def read(path: str | os.PathLike, **options) -> Motion:
         raise FormatError(path, f"cannot parse ({type(exc).__name__}: {exc})") from None
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def write(motion: Motion, path: str | os.PathLike, **options) -> None:
     """Write a motion file atomically; the suffix picks the format."""
     path = Path(path)
@@ -93,6 +99,8 @@ def write(motion: Motion, path: str | os.PathLike, **options) -> None:
     os.close(fd)
     try:
         module.write(motion, Path(tmp), **options)
+        # mkstemp creates 0600; give the output the mode a plain open() would have.
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
