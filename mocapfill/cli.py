@@ -23,7 +23,11 @@ METHOD_NAMES = ("trnn", "trnn-paper", "linear", "spline", "pchip", "pca", "svt",
 
 
 def _fail(message: str, code: int) -> None:
-    click.echo(f"mocapfill: error: {message}", err=True)
+    # File content quoted in a message may hold undecodable bytes (surrogate escapes) or
+    # newlines; the error stays one printable line whatever the file contained.
+    text = " ".join(message.split())
+    text = text.encode("utf-8", "backslashreplace").decode("utf-8")
+    click.echo(f"mocapfill: error: {text}", err=True)
     sys.exit(code)
 
 
@@ -31,10 +35,16 @@ class _Group(click.Group):
     """Turns mocapfill's typed errors into one line and an exit code, never a traceback."""
 
     def invoke(self, ctx: click.Context):
+        import warnings
+
         from .errors import FormatError, MocapfillError, ParameterError
 
         try:
-            return super().invoke(ctx)
+            with warnings.catch_warnings():
+                # numpy's floating-point RuntimeWarnings (overflow on corrupt values, ...)
+                # are not messages for users; the outcome is reported as an error or not.
+                warnings.simplefilter("ignore", RuntimeWarning)
+                return super().invoke(ctx)
         except ParameterError as exc:
             _fail(str(exc), EXIT_USAGE)
         except FormatError as exc:
@@ -109,8 +119,27 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
 
 
 @main.command()
-@click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
-@click.argument("out_path", metavar="OUT", type=click.Path(path_type=Path))
+@click.argument("paths", nargs=-1, required=True, metavar="IN... [OUT]",
+                type=click.Path(path_type=Path))
+@click.option("-o", "--out-dir", type=click.Path(path_type=Path, file_okay=False), default=None,
+              help="Batch: repair every IN (files, folders walked recursively for known "
+                   "suffixes, quoted globs) into this folder, mirroring the input tree. "
+                   "Outputs newer than their input are skipped, so a rerun resumes.")
+@click.option("--in-place", is_flag=True,
+              help="Batch: replace each IN with its repair (atomically) instead of -o.")
+@click.option("--force", is_flag=True,
+              help="Batch: redo files whose output is newer than their input.")
+@click.option("-j", "--jobs", type=int, default=None,
+              help="Batch: worker processes on this machine (each with single-threaded "
+                   "BLAS). Default: all cores; 1 runs in this process.")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Batch: run on a dask.distributed cluster (tcp://host:8786) whose workers "
+                   "see the same files (pip install mocapfill[dask]).")
+@click.option("--report", "report_path", type=click.Path(path_type=Path), default=None,
+              help="Batch: write FILE.json with every file's status, reason, gaps filled "
+                   "and left, frames and seconds.")
+@click.option("--suffix", default=None, metavar=".c3d",
+              help="Batch: output format (.c3d, .csv, .npz, ...). Default: each input's own.")
 @click.option("--method", type=click.Choice(METHOD_NAMES), default="trnn", show_default=True,
               help="Completion method. trnn: our converged TrNN (default); trnn-paper: the "
                    "published algorithm and settings; linear/spline/pchip: interpolation "
@@ -146,30 +175,49 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
 @click.option("--exclude", multiple=True, metavar="NAME|GLOB",
               help="Never fill these markers (repeatable; globs).")
 @click.option("--gaps-report", type=click.Path(path_type=Path), default=None,
-              help="Write one row per gap (marker, first/last frame, length in frames and "
-                   "seconds, method, status) to FILE.csv or FILE.json.")
+              help="One file: write one row per gap (marker, first/last frame, length in "
+                   "frames and seconds, method, status) to FILE.csv or FILE.json.")
 @click.option("--check", is_flag=True,
-              help="Exit with code 1 when any gap is left unfilled.")
+              help="Exit with code 1 when any gap is left unfilled (in any file).")
 @_zero_option
-def repair(in_path: Path, out_path: Path, method: str, rank, lam, mu, rho, eta0, tol, max_iter,
-           max_gap, ends, markers, exclude, gaps_report, check, zero_is_missing) -> None:
+def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, report_path,
+           suffix, method: str, rank, lam, mu, rho, eta0, tol, max_iter, max_gap, ends, markers,
+           exclude, gaps_report, check, zero_is_missing) -> None:
     """Fill the gaps of IN and write OUT; only missing samples change.
 
     The output format follows OUT's suffix; a same-format repair patches a copy of IN
     (C3D: only the four words of each filled sample change, residual word 0 marks them).
     IN is never modified; OUT is written atomically.
+
+    Batch: `mocapfill repair IN... -o OUTDIR` repairs files, folders and globs on all
+    cores (-j) or a Dask cluster (--scheduler), mirrors the tree under OUTDIR, keeps going
+    past failed files, prints one summary line and exits 123 if any file failed.
     """
-    from . import formats
     from .pipeline import RepairOptions
+
+    solver_options = _solver_options(rank=rank, lam=lam, mu=mu, rho=rho, eta0=eta0, tol=tol,
+                                     max_iter=max_iter)
+
+    def options(max_gap_frames: int | None) -> RepairOptions:
+        return RepairOptions(method=method, solver_options=solver_options,
+                             max_gap_frames=max_gap_frames, ends=ends,
+                             markers=tuple(markers), exclude=tuple(exclude))
+
+    if out_dir is not None or in_place:
+        frames, seconds = _batch_max_gap(max_gap)
+        _repair_batch(paths, options(frames), max_gap_s=seconds, out_dir=out_dir,
+                      in_place=in_place, force=force, jobs=jobs, scheduler=scheduler,
+                      report_path=report_path, suffix=suffix, gaps_report=gaps_report,
+                      check=check, zero_is_missing=zero_is_missing)
+        return
+    _refuse_batch_options(paths, force=force, jobs=jobs, scheduler=scheduler,
+                          report=report_path, suffix=suffix)
+    in_path, out_path = paths
+    from . import formats
     from .pipeline import repair as run_repair
 
     motion = _read(in_path, zero_is_missing)
-    solver_options = _solver_options(rank=rank, lam=lam, mu=mu, rho=rho, eta0=eta0, tol=tol,
-                                     max_iter=max_iter)
-    options = RepairOptions(method=method, solver_options=solver_options,
-                            max_gap_frames=_parse_max_gap(max_gap, motion.rate), ends=ends,
-                            markers=tuple(markers), exclude=tuple(exclude))
-    result = run_repair(motion, options)
+    result = run_repair(motion, options(_parse_max_gap(max_gap, motion.rate)))
     formats.write(result.motion, out_path)
     if gaps_report is not None:
         from .report import write_gaps_report
@@ -178,6 +226,102 @@ def repair(in_path: Path, out_path: Path, method: str, rank, lam, mu, rho, eta0,
     click.echo(_summary_line(result, in_path, out_path), err=True)
     if check and result.left:
         sys.exit(EXIT_CHECK_FAILED)
+
+
+def _refuse_batch_options(paths, **batch_only) -> None:
+    from .errors import ParameterError
+
+    given = [f"--{name}" for name, value in batch_only.items() if value not in (None, False)]
+    if given:
+        raise ParameterError(f"{', '.join(given)} apply to batches: add -o OUTDIR or "
+                             "--in-place")
+    if len(paths) != 2:
+        raise ParameterError(f"got {len(paths)} path(s): give IN OUT for one file, or "
+                             "IN... -o OUTDIR (or --in-place) for a batch")
+
+
+def _batch_max_gap(text: str | None) -> tuple[int | None, float | None]:
+    """--max-gap for a batch: frames apply as they are; seconds convert per file (rates
+    differ between files), so they travel as seconds."""
+    if text is None:
+        return None, None
+    frames = _parse_max_gap(text, 1.0)  # validates; exact when given in frames
+    if text.strip().lower().endswith("s"):
+        return None, float(text.strip()[:-1])
+    return frames, None
+
+
+class _BatchProgress:
+    """The progress bar of a batch: stderr, and only when stderr is a terminal (click's
+    default is stdout, and off a terminal it would print its label once)."""
+
+    def __init__(self) -> None:
+        self.bar = None
+        self.started = 0.0
+
+    def __call__(self, done: int, total: int, record) -> None:
+        import time
+
+        if record is None:
+            if sys.stderr.isatty() and total:
+                self.started = time.monotonic()
+                self.bar = click.progressbar(length=total, label="repairing", file=sys.stderr,
+                                             show_pos=True, show_eta=True,
+                                             item_show_func=self._rate)
+                self.bar.__enter__()
+        elif self.bar is not None:
+            self.bar.update(1, record)
+
+    def _rate(self, record) -> str | None:
+        import time
+
+        elapsed = time.monotonic() - self.started
+        if record is None or self.bar is None or elapsed <= 0:
+            return None
+        return f"{(self.bar.pos + 1) / elapsed:.1f} files/s"
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
+            self.bar = None
+
+
+def _repair_batch(paths, options, *, max_gap_s, out_dir, in_place, force, jobs, scheduler,
+                  report_path, suffix, gaps_report, check, zero_is_missing) -> None:
+    from .batch import BatchInterrupted, repair_many
+    from .errors import ParameterError
+
+    if gaps_report is not None:
+        raise ParameterError("--gaps-report is for one file; a batch writes --report FILE.json")
+    if report_path is not None and report_path.suffix.lower() != ".json":
+        raise ParameterError(f"--report must name a .json file, got {report_path}")
+    progress = _BatchProgress()
+    try:
+        report = repair_many(paths, out_dir, options=options, jobs=jobs, scheduler=scheduler,
+                             in_place=in_place, force=force, zero_is_missing=zero_is_missing,
+                             max_gap_s=max_gap_s, suffix=suffix, progress=progress)
+    except BatchInterrupted as exc:
+        progress.close()
+        _finish_batch(exc.report, report_path)
+        _fail("interrupted", EXIT_INTERRUPTED)
+    finally:
+        progress.close()
+    _finish_batch(report, report_path)
+    code = report.exit_code(check)
+    if code:
+        sys.exit(code)
+
+
+def _finish_batch(report, report_path: Path | None) -> None:
+    """Failures one line each, the JSON report, then the summary line; all on stderr."""
+    for record in report.failures:
+        # The reason may quote file content: keep it one printable line, like _fail's.
+        line = " ".join(f"{record.input}: {record.reason}".split())
+        click.echo(f"mocapfill: error: {line.encode('utf-8', 'backslashreplace').decode()}",
+                   err=True)
+    if report_path is not None:
+        report.write_json(report_path)
+    click.echo(report.summary(), err=True)
 
 
 def _solver_options(**values) -> dict:

@@ -102,7 +102,16 @@ def write(motion: Motion, path: str | os.PathLike, **options) -> None:
         # mkstemp creates 0600; give the output the mode a plain open() would have.
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    except FormatError as exc:
+        _discard(tmp)
+        if exc.path == tmp:  # the module only saw the temporary name
+            raise FormatError(path, exc.problem, exit_code=exc.exit_code) from None
         raise
+    except BaseException:
+        _discard(tmp)
+        raise
+
+
+def _discard(tmp: str) -> None:
+    if os.path.exists(tmp):
+        os.unlink(tmp)

@@ -1,0 +1,509 @@
+"""ASF/AMC (Acclaim; the CMU Motion Capture Database): a skeleton file and a motion file.
+
+The user passes the ``.amc``; its ``.asf`` is looked for beside it: the same stem
+(``09_12.asf``), then the subject prefix before the first ``_`` (``09.asf``), then the only
+``.asf`` in the folder. Option ``asf=`` names it explicitly.
+
+Parsing is done here because both PyPI parsers fail on CMU files (they expect a fixed
+keyword order, dof and limits on every bone, and one drops the last frame). The parser is
+tolerant in the ways the Acclaim text allows: ``#`` comments, ``(``, ``)`` and ``,`` are
+whitespace, ``:keyword`` sections in any order, keys in any order inside ``:root`` and a
+bone block, bones without ``dof``, ``limits`` wrapped over lines. Bone dofs may be any
+subset and order of ``rx ry rz``; translation dofs (``tx ty tz l``) are rejected. AMC
+angles are degrees under ``:DEGREES`` and radians otherwise; the channel matrix always
+holds degrees and the writer converts back.
+
+Kinematics (canonical Acclaim, column vectors): for bone ``j`` with fixed frame
+``C_j = Rot(axis_j)`` and dof rotation ``M_j`` (rotations about fixed axes in dof order,
+``rx ry rz`` -> Rz·Ry·Rx), ``W_j = W_parent @ C_j @ M_j @ C_j.T`` and the bone's END point
+is ``p_j = p_parent + length_j * W_j @ direction_j``. The root is at ``TX TY TZ`` plus its
+``position``. Points of the Motion are ``root`` and the end point of every bone, labelled
+with the bone name (so a BVH converted from the same ASF has the point of ``lfemur``'s end
+at the joint *below* it, ``LeftLeg``).
+
+AMC files declare no frame count: a bone line absent from a frame, or a ``nan`` value, is a
+gap, not an error. A bone line with the wrong number of values is an error.
+
+Units: the ASF's ``:units length`` is a divisor of the file's lengths; by the CMU
+convention the unit before that division is the inch. By default positions stay in file
+units, labelled ``"in/0.45"`` for CMU (``"in"`` when ``length`` is 1); ``units="mm"``,
+``"cm"``, ``"m"`` or ``"in"`` converts positions (never the channels or the written file)
+under that convention (CMU: 1 file unit = 0.0254 / 0.45 m = 56.444 mm). The rate is not in
+the files; CMU captured at 120 Hz (option ``rate=``).
+
+Writing patches the AMC the Motion was read from: every line is echoed byte for byte
+except the cells whose observed state changed (filled: a number with 6 significant digits,
+like the CMU files; made missing: ``nan``). A filled cell whose bone line was absent from
+its frame gets a new line at the end of that frame.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..errors import FormatError, ParameterError
+from ..motion import Motion
+from ..skeleton import ChannelState, Skeleton, patch_tokens, positions_edited
+
+INCH_IN = {"in": 1.0, "mm": 25.4, "cm": 2.54, "m": 0.0254}
+NOT_DOF_CHANNELS = ("tx", "ty", "tz", "l")
+
+
+# --------------------------------------------------------------------------- ASF
+
+@dataclass
+class _Bone:
+    name: str
+    direction: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    length: float = 0.0
+    axis: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    axis_order: str = "XYZ"
+    dof: tuple[str, ...] = ()
+
+
+@dataclass
+class _Asf:
+    """The parts of an ASF the kinematics needs, lengths and angles as in the file."""
+
+    bones: dict[str, _Bone]
+    children: dict[str, list[str]]
+    length_unit: float = 1.0
+    angle_in_degrees: bool = True
+    root_order: tuple[str, ...] = ("TX", "TY", "TZ", "RX", "RY", "RZ")
+    root_axis: str = "XYZ"
+    root_position: tuple[float, ...] = (0.0, 0.0, 0.0)
+    root_orientation: tuple[float, ...] = (0.0, 0.0, 0.0)
+
+
+def _clean(line: str) -> list[str]:
+    """Tokens of a line: ``#`` starts a comment; parentheses and commas are whitespace."""
+    text = line.split("#", 1)[0]
+    return text.replace("(", " ").replace(")", " ").replace(",", " ").split()
+
+
+def _sections(lines: list[str]) -> dict[str, list[list[str]]]:
+    """Token lines grouped under their ``:keyword`` (inline values first)."""
+    sections: dict[str, list[list[str]]] = {}
+    current: list[list[str]] | None = None
+    for line in lines:
+        tokens = _clean(line)
+        if not tokens:
+            continue
+        if tokens[0].startswith(":"):
+            current = sections.setdefault(tokens[0][1:].lower(), [])
+            if len(tokens) > 1:
+                current.append(tokens[1:])
+        elif current is not None:
+            current.append(tokens)
+    return sections
+
+
+def _key_values(rows: list[list[str]]) -> dict[str, list[str]]:
+    """``key value...`` rows; a row starting with a number continues the previous key."""
+    values: dict[str, list[str]] = {}
+    key = None
+    for row in rows:
+        if key is not None and _is_number(row[0]):
+            values[key].extend(row)
+        else:
+            key = row[0].lower()
+            values[key] = row[1:]
+    return values
+
+
+def _is_number(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
+def _bone(block: list[list[str]]) -> _Bone:
+    keys = _key_values(block)
+    if "name" not in keys or not keys["name"]:
+        raise ValueError("bone block without a name")
+    bone = _Bone(keys["name"][0])
+    if "direction" in keys:
+        bone.direction = np.array([float(v) for v in keys["direction"][:3]])
+    if "length" in keys:
+        bone.length = float(keys["length"][0])
+    if "axis" in keys:
+        axis = keys["axis"]
+        bone.axis = tuple(float(v) for v in axis[:3])
+        bone.axis_order = axis[3].upper() if len(axis) > 3 else "XYZ"
+    bone.dof = tuple(d.lower() for d in keys.get("dof", []))
+    bad = [d for d in bone.dof if d not in ("rx", "ry", "rz")]
+    if bad:
+        what = "translation dofs" if set(bad) <= set(NOT_DOF_CHANNELS) else "unknown dofs"
+        raise ValueError(f"bone {bone.name!r} has {what} {' '.join(bad)} (not supported)")
+    return bone
+
+
+def _blocks(rows: list[list[str]]) -> list[list[list[str]]]:
+    """The rows between each ``begin`` and ``end``."""
+    blocks, current = [], None
+    for row in rows:
+        word = row[0].lower()
+        if word == "begin":
+            current = []
+        elif word == "end":
+            if current is not None:
+                blocks.append(current)
+            current = None
+        elif current is not None:
+            current.append(row)
+    return blocks
+
+
+def parse_asf(text: str) -> _Asf:
+    """Parse ASF text; raises ValueError naming what is wrong."""
+    sections = _sections(text.splitlines())
+    for needed in ("bonedata", "hierarchy"):
+        if needed not in sections:
+            raise ValueError(f"no :{needed} section")
+    bones = {}
+    for block in _blocks(sections["bonedata"]):
+        bone = _bone(block)
+        bones[bone.name] = bone
+    children: dict[str, list[str]] = {}
+    for block in _blocks(sections["hierarchy"]):
+        for row in block:
+            children.setdefault(row[0], []).extend(row[1:])
+    asf = _Asf(bones, children)
+    units = _key_values(sections.get("units", []))
+    if "length" in units:
+        asf.length_unit = float(units["length"][0])
+    if "angle" in units:
+        asf.angle_in_degrees = units["angle"][0].lower().startswith("deg")
+    root = _key_values(sections.get("root", []))
+    if "order" in root:
+        asf.root_order = tuple(t.upper() for t in root["order"])
+    if "axis" in root:
+        asf.root_axis = root["axis"][0].upper()
+    if "position" in root:
+        asf.root_position = tuple(float(v) for v in root["position"][:3])
+    if "orientation" in root:
+        asf.root_orientation = tuple(float(v) for v in root["orientation"][:3])
+    bad = [t for t in asf.root_order if t not in ("TX", "TY", "TZ", "RX", "RY", "RZ")]
+    if bad:
+        raise ValueError(f":root order has unknown channels {' '.join(bad)}")
+    return asf
+
+
+def _tree(asf: _Asf) -> list[tuple[str, int]]:
+    """(bone, parent index) in depth-first order from ``root``; every bone must be reached."""
+    order: list[tuple[str, int]] = [("root", -1)]
+    stack = [(child, 0) for child in reversed(asf.children.get("root", []))]
+    while stack:
+        name, parent = stack.pop()
+        if name not in asf.bones:
+            raise ValueError(f":hierarchy names bone {name!r} that :bonedata does not define")
+        if any(name == seen for seen, _ in order):
+            raise ValueError(f":hierarchy reaches bone {name!r} twice")
+        order.append((name, parent))
+        here = len(order) - 1
+        stack.extend((child, here) for child in reversed(asf.children.get(name, [])))
+    unreached = sorted(set(asf.bones) - {name for name, _ in order})
+    if unreached:
+        raise ValueError(f"bones not in :hierarchy: {', '.join(unreached)}")
+    return order
+
+
+def _axis_frame(order: str, angles: tuple[float, ...], in_degrees: bool) -> np.ndarray:
+    return Rotation.from_euler(order.lower(), angles, degrees=in_degrees).as_matrix()
+
+
+def build_skeleton(asf: _Asf) -> tuple[Skeleton, list[str], list[tuple[int, ...]]]:
+    """The kinematic tree of an ASF and its channel layout.
+
+    Returns
+    -------
+    skeleton
+        Points ``root`` and every bone end, in depth-first order.
+    channel_names
+        ``"<bone>.<dof>"`` per column of the channel matrix (root in ``order``, then bones
+        with dofs in point order).
+    line_columns
+        Per point, the channel columns of its AMC line in the line's value order (empty for
+        bones without dofs).
+    """
+    tree = _tree(asf)
+    rotation_columns, rotation_axes = [], []
+    translation_columns, translation_axes = [], []
+    channel_names: list[str] = []
+    line_columns: list[tuple[int, ...]] = []
+    offsets, frames, own = [], [], []
+    for name, _parent in tree:
+        rot_cols, rot_axes, tr_cols, tr_axes = [], "", [], ""
+        dofs = asf.root_order if name == "root" else asf.bones[name].dof
+        for dof in dofs:
+            column = len(channel_names)
+            channel_names.append(f"{name}.{dof}")
+            if dof.upper().startswith("T"):
+                tr_cols.append(column)
+                tr_axes += dof[1].upper()
+            else:
+                rot_cols.append(column)
+                rot_axes += dof[1].lower()
+        line_columns.append(tuple(range(len(channel_names) - len(dofs), len(channel_names))))
+        rotation_columns.append(tuple(rot_cols))
+        rotation_axes.append(rot_axes)
+        translation_columns.append(tuple(tr_cols))
+        translation_axes.append(tr_axes)
+        if name == "root":
+            offsets.append(np.asarray(asf.root_position, float))
+            frames.append(_axis_frame(asf.root_axis, asf.root_orientation, asf.angle_in_degrees))
+            own.append(False)
+        else:
+            bone = asf.bones[name]
+            offsets.append(bone.length * bone.direction)
+            frames.append(_axis_frame(bone.axis_order, bone.axis, asf.angle_in_degrees))
+            own.append(True)
+    skeleton = Skeleton(tuple(name for name, _ in tree), np.array([p for _, p in tree]),
+                        np.array(offsets), tuple(rotation_columns), tuple(rotation_axes),
+                        tuple(translation_columns), tuple(translation_axes), intrinsic=False,
+                        n_channels=len(channel_names), pre_rotations=np.array(frames),
+                        offset_in_own_frame=np.array(own))
+    return skeleton, channel_names, line_columns
+
+
+def find_asf(amc: Path) -> Path:
+    """The ASF of an AMC: same stem, subject prefix, or the only .asf in the folder."""
+    folder = amc.parent if str(amc.parent) else Path(".")
+    asfs = {p.name.lower(): p for p in folder.iterdir() if p.suffix.lower() == ".asf"}
+    tried = [f"{amc.stem}.asf", f"{amc.stem.split('_')[0]}.asf"]
+    for name in tried:
+        if name.lower() in asfs:
+            return asfs[name.lower()]
+    if len(asfs) == 1:
+        return next(iter(asfs.values()))
+    found = f"{len(asfs)} .asf files" if asfs else "no .asf file"
+    raise FormatError(amc, f"cannot find its skeleton: tried {' and '.join(dict.fromkeys(tried))}"
+                           f" in {folder}, which holds {found}; pass asf=")
+
+
+# --------------------------------------------------------------------------- AMC
+
+@dataclass(frozen=True, eq=False)
+class AmcSource:
+    """What the AMC writer needs to patch the original file.
+
+    Attributes
+    ----------
+    lines
+        Every line of the AMC with its line ending (Latin-1, bytes round-trip exactly).
+    asf_path
+        The skeleton file used.
+    channel_names
+        ``"<bone>.<dof>"`` for every column of the channel matrix.
+    line_columns
+        Per point, the columns its AMC line holds, in value order.
+    point_lines
+        (frames, points) index into ``lines`` of each bone's line in each frame, -1 where
+        the frame lacks that line.
+    frame_ends
+        Index of the last line of each frame.
+    state
+        The channel matrix (angles in degrees) as read and as it is now.
+    angle_factor
+        Degrees per AMC angle unit (1 under ``:DEGREES``, else 180/pi).
+    scale
+        Factor from file lengths to ``Motion.positions``.
+    """
+
+    lines: tuple[str, ...]
+    asf_path: Path
+    channel_names: tuple[str, ...]
+    line_columns: tuple[tuple[int, ...], ...]
+    point_lines: np.ndarray
+    frame_ends: tuple[int, ...]
+    state: ChannelState
+    angle_factor: float
+    scale: float = 1.0
+
+
+def _parse_amc(path: Path, lines: tuple[str, ...], skeleton: Skeleton,
+               line_columns: list[tuple[int, ...]]) -> tuple[np.ndarray, np.ndarray,
+                                                               list[int], list[int], bool]:
+    """Channel values, line index of each (frame, point), frame numbers and ends."""
+    point_of = {name: j for j, name in enumerate(skeleton.names)}
+    rows: list[np.ndarray] = []
+    point_lines: list[np.ndarray] = []
+    numbers: list[int] = []
+    ends: list[int] = []
+    in_degrees = False
+    for i, line in enumerate(lines):
+        tokens = line.split("#", 1)[0].split()
+        if not tokens:
+            continue
+        if tokens[0].startswith(":"):
+            in_degrees |= tokens[0].upper() == ":DEGREES"
+            continue
+        if len(tokens) == 1 and tokens[0].isdigit():
+            numbers.append(int(tokens[0]))
+            rows.append(np.full(skeleton.n_channels, np.nan))
+            point_lines.append(np.full(skeleton.n_joints, -1))
+            ends.append(i)
+            continue
+        if not rows:
+            raise FormatError(path, f"line {i + 1}: bone values before the first frame number")
+        name = tokens[0]
+        if name not in point_of or not line_columns[point_of[name]]:
+            what = "not in the ASF" if name not in point_of else "has no dof in the ASF"
+            raise FormatError(path, f"line {i + 1}: bone {name!r} {what}")
+        columns = line_columns[point_of[name]]
+        if len(tokens) - 1 != len(columns):
+            raise FormatError(path, f"line {i + 1}: {name} has {len(tokens) - 1} values, "
+                                    f"its dof lists {len(columns)}")
+        try:
+            rows[-1][list(columns)] = [float(t) for t in tokens[1:]]
+        except ValueError:
+            raise FormatError(path, f"line {i + 1}: non-numeric value for {name}") from None
+        point_lines[-1][point_of[name]] = i
+        ends[-1] = i
+    if not rows:
+        raise FormatError(path, "no frames (no line holding a frame number)")
+    values = np.array(rows)
+    if np.isinf(values).any():
+        raise FormatError(path, "infinite value in the motion")
+    return values, np.array(point_lines), numbers, ends, in_degrees
+
+
+def _units(asf: _Asf, units: str | None) -> tuple[float, str]:
+    if units is None:
+        return 1.0, "in" if asf.length_unit == 1 else f"in/{asf.length_unit:g}"
+    if units not in INCH_IN:
+        raise ParameterError(f"units must be one of {', '.join(INCH_IN)}, got {units!r}")
+    return INCH_IN[units] / asf.length_unit, units
+
+
+def read(path: Path, *, asf: Path | str | None = None, rate: float = 120.0,
+         units: str | None = None, **_options) -> Motion:
+    """Read an AMC motion and its ASF skeleton; points are root and bone ends from FK.
+
+    Parameters
+    ----------
+    path
+        The ``.amc`` file.
+    asf
+        The skeleton file; found beside the AMC when omitted.
+    rate
+        Frame rate in Hz (AMC files do not store it; CMU captured at 120 Hz).
+    units
+        None keeps file units; "mm", "cm", "m" or "in" converts positions assuming the
+        ASF lengths are inches divided by ``:units length`` (the CMU convention).
+
+    Returns
+    -------
+    Motion
+        With ``source`` an :class:`AmcSource` for :func:`write`, :func:`channels` and
+        :func:`with_channels`.
+    """
+    path = Path(path)
+    asf_path = Path(asf) if asf is not None else find_asf(path)
+    if not asf_path.is_file():
+        raise FormatError(asf_path, "no such ASF file")
+    try:
+        skeleton_file = parse_asf(asf_path.read_bytes().decode("latin-1"))
+        skeleton, channel_names, line_columns = build_skeleton(skeleton_file)
+    except (ValueError, IndexError) as exc:
+        raise FormatError(asf_path, f"bad ASF: {exc}") from None
+    scale, label = _units(skeleton_file, units)
+    lines = tuple(path.read_bytes().decode("latin-1").splitlines(keepends=True))
+    values, point_lines, numbers, ends, in_degrees = _parse_amc(path, lines, skeleton,
+                                                                line_columns)
+    angle_factor = 1.0 if in_degrees else 180.0 / np.pi
+    values[:, skeleton.rotation_channel] *= angle_factor
+    source = AmcSource(lines, asf_path, tuple(channel_names), tuple(line_columns), point_lines,
+                       tuple(ends), ChannelState.as_read(skeleton, values), angle_factor, scale)
+    positions, observed = source.state.points()
+    return Motion(positions * scale, observed, skeleton.names, rate, label, source=source,
+                  path=path, first_frame=numbers[0])
+
+
+# --------------------------------------------------------------------------- channel space
+
+def _source(motion: Motion, path: Path | None = None) -> AmcSource:
+    if not isinstance(motion.source, AmcSource):
+        raise FormatError(path, "AMC output needs an AMC input (positions cannot be turned "
+                                "into joint angles); write .c3d/.trc/.csv instead")
+    return motion.source
+
+
+def channels(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """The clip's channel matrix (degrees, file lengths), rotations unwrapped along time.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        (frames, channels) float64 values, NaN where missing, and the bool observed mask.
+    """
+    return _source(motion).state.unwrapped()
+
+
+def with_channels(motion: Motion, values: np.ndarray, observed: np.ndarray) -> Motion:
+    """A copy of ``motion`` driven by a new channel matrix.
+
+    Cells observed before keep their stored value; newly observed cells take ``values``
+    wrapped into the range their channel used; positions are recomputed by FK and the
+    source carries the new matrix for :func:`write`.
+    """
+    source = _source(motion)
+    source = replace(source, state=source.state.updated(values, observed))
+    positions, point_observed = source.state.points()
+    return motion.with_positions(positions * source.scale, point_observed).replace(source=source)
+
+
+# --------------------------------------------------------------------------- writing
+
+def _cell_text(source: AmcSource, frame: int, column: int) -> str:
+    state = source.state
+    if not state.observed[frame, column]:
+        return "nan"
+    value = state.values[frame, column]
+    if state.skeleton.rotation_channel[column]:
+        value /= source.angle_factor
+    return f"{value:.6g}"
+
+
+def write(motion: Motion, path: Path, **_options) -> None:
+    """Write a repaired AMC by patching the file the Motion was read from.
+
+    Raises
+    ------
+    FormatError
+        When the Motion did not come from AMC, or its positions were edited without going
+        through :func:`with_channels`.
+    """
+    source = _source(motion, path)
+    differing = positions_edited(motion, source.state)
+    if differing:
+        raise FormatError(path, f"positions were changed outside channel space ({differing} "
+                                "samples disagree with the channels); AMC stores joint "
+                                "angles: repair through acclaim.with_channels")
+    lines = list(source.lines)
+    added: dict[int, list[str]] = {}
+    changed = source.state.changed_cells()
+    for frame in np.flatnonzero(changed.any(axis=1)):
+        for point, columns in enumerate(source.line_columns):
+            touched = [k for k, c in enumerate(columns) if changed[frame, c]]
+            if not touched:
+                continue
+            index = source.point_lines[frame, point]
+            if index >= 0:
+                cells = {k + 1: _cell_text(source, frame, columns[k]) for k in touched}
+                lines[index] = patch_tokens(lines[index], cells)
+            else:
+                end = source.frame_ends[frame]
+                newline = lines[end][len(lines[end].rstrip("\r\n")):] or "\n"
+                texts = [_cell_text(source, frame, c) for c in columns]
+                added.setdefault(end, []).append(
+                    " ".join([source.state.skeleton.names[point], *texts]) + newline)
+    if added and not lines[-1].endswith(("\n", "\r")) and (len(lines) - 1) in added:
+        lines[-1] += "\n"
+    out = [text for i, line in enumerate(lines) for text in (line, *added.get(i, []))]
+    Path(path).write_bytes("".join(out).encode("latin-1"))

@@ -1,0 +1,388 @@
+"""ASF/AMC: the tolerant parser, canonical Acclaim FK, channel space and the patching writer."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mocapfill.errors import FormatError, ParameterError
+from mocapfill.formats import acclaim, bvh
+from mocapfill.motion import from_matrix
+from tests.conftest import shared_file
+from tests.formats.test_bvh import fill_by_interpolation
+from tests.test_skeleton import rot
+
+# Keywords deliberately out of the usual order, a comment, commas, wrapped limits, a bone
+# without dof, dofs in a subset and a non-xyz order.
+ASF = """# made by hand
+:name tiny
+:root
+   axis XYZ
+   order TX TY TZ RX RY RZ
+   orientation 0 0 0
+   position 0 0 0
+:units
+  length 0.5
+  angle deg
+  mass 1.0
+:bonedata
+  begin
+     name arm
+     id 1
+     length 2
+     direction 1, 0, 0
+     axis 0 0 90  XYZ
+    dof rx
+    limits (-180.0 180.0)
+  end
+  begin
+     id 2
+     name hand
+     direction 0 1 0
+     length 1
+     axis 0 0 0 XYZ
+    dof rz ry
+    limits (-180.0 180.0)
+           (-180.0 180.0)
+  end
+  begin
+     id 3
+     name stub
+     direction 0 0 1
+     length 3
+     axis 0 0 0 XYZ
+  end
+:hierarchy
+  begin
+    root arm stub
+    arm hand
+  end
+"""
+
+
+def write_pair(tmp_path: Path, frames: list[str], stem: str = "tiny_01",
+               asf_name: str = "tiny_01.asf", header: str = ":FULLY-SPECIFIED\n:DEGREES\n"
+               ) -> Path:
+    (tmp_path / asf_name).write_text(ASF)
+    amc = tmp_path / f"{stem}.amc"
+    amc.write_text("#!OML:ASF tiny.asf\n" + header + "".join(frames))
+    return amc
+
+
+def frame(number: int, root: str = "0 0 0 0 0 0", arm: str | None = "0",
+          hand: str | None = "0 0") -> str:
+    lines = [f"{number}", f"root {root}"]
+    lines += [] if arm is None else [f"arm {arm}"]
+    lines += [] if hand is None else [f"hand {hand}"]
+    return "".join(line + "\n" for line in lines)
+
+
+def point(motion, label: str, frame_index: int = 0) -> np.ndarray:
+    return motion.positions[frame_index, motion.labels.index(label)]
+
+
+# ----------------------------------------------------------------------- ASF and FK
+
+def test_points_are_the_root_and_every_bone_end(tmp_path):
+    motion = acclaim.read(write_pair(tmp_path, [frame(1)]))
+    assert motion.labels == ("root", "arm", "hand", "stub")
+
+
+def test_rest_pose_puts_bone_ends_along_length_times_direction(tmp_path):
+    motion = acclaim.read(write_pair(tmp_path, [frame(1, root="1 2 3 0 0 0")]))
+    np.testing.assert_allclose(point(motion, "arm"), [3, 2, 3], atol=1e-12)
+    np.testing.assert_allclose(point(motion, "hand"), [3, 3, 3], atol=1e-12)
+    np.testing.assert_allclose(point(motion, "stub"), [1, 2, 6], atol=1e-12)
+
+
+def test_root_rz_of_90_turns_every_bone_about_world_z(tmp_path):
+    motion = acclaim.read(write_pair(tmp_path, [frame(1, root="0 0 0 0 0 90")]))
+    np.testing.assert_allclose(point(motion, "arm"), [0, 2, 0], atol=1e-12)
+    np.testing.assert_allclose(point(motion, "hand"), [-1, 2, 0], atol=1e-12)
+
+
+def test_dof_rotation_is_about_the_bones_axis_frame(tmp_path):
+    # arm: axis (0 0 90) makes its local x the world y; rx 90 turns the bone, which
+    # points along world x, about world y: x -> -z.
+    motion = acclaim.read(write_pair(tmp_path, [frame(1, arm="90")]))
+    np.testing.assert_allclose(point(motion, "arm"), [0, 0, -2], atol=1e-12)
+
+
+def test_dof_angles_rotate_about_fixed_axes_in_dof_order(tmp_path):
+    # hand: dof "rz ry" -> M = Ry(b) @ Rz(a); its bone points along world y.
+    motion = acclaim.read(write_pair(tmp_path, [frame(1, hand="30 40")]))
+    expected = [2, 0, 0] + rot("Y", 40) @ rot("Z", 30) @ [0, 1, 0]
+    np.testing.assert_allclose(point(motion, "hand"), expected, atol=1e-12)
+
+
+def test_root_rotations_compose_about_fixed_axes_in_order(tmp_path):
+    motion = acclaim.read(write_pair(tmp_path, [frame(1, root="0 0 0 30 40 50")]))
+    expected = rot("Z", 50) @ rot("Y", 40) @ rot("X", 30) @ [0, 0, 3]
+    np.testing.assert_allclose(point(motion, "stub"), expected, atol=1e-12)
+
+
+def test_asf_with_radian_axes_matches_degrees(tmp_path):
+    degrees = acclaim.read(write_pair(tmp_path, [frame(1, arm="90")]))
+    (tmp_path / "tiny_01.asf").write_text(
+        ASF.replace("angle deg", "angle rad").replace("axis 0 0 90", f"axis 0 0 {np.pi / 2!r}"))
+    radians = acclaim.read(tmp_path / "tiny_01.amc")
+    np.testing.assert_allclose(radians.positions, degrees.positions, atol=1e-12)
+
+
+def test_amc_without_degrees_keyword_holds_radians(tmp_path):
+    amc = write_pair(tmp_path, [frame(1, arm=repr(np.pi / 2))], header=":FULLY-SPECIFIED\n")
+    motion = acclaim.read(amc)
+    np.testing.assert_allclose(acclaim.channels(motion)[0][0, 6], 90.0)
+    np.testing.assert_allclose(point(motion, "arm"), [0, 0, -2], atol=1e-12)
+
+
+def test_translation_dofs_are_rejected_naming_the_bone(tmp_path):
+    amc = write_pair(tmp_path, [frame(1)])
+    (tmp_path / "tiny_01.asf").write_text(ASF.replace("dof rx\n", "dof rx tx\n"))
+    with pytest.raises(FormatError, match=r"tiny_01\.asf: bad ASF: bone 'arm' has translation"):
+        acclaim.read(amc)
+
+
+def test_a_hierarchy_naming_an_undefined_bone_is_a_format_error(tmp_path):
+    amc = write_pair(tmp_path, [frame(1)])
+    (tmp_path / "tiny_01.asf").write_text(ASF.replace("arm hand", "arm hand finger"))
+    with pytest.raises(FormatError, match="'finger' that :bonedata does not define"):
+        acclaim.read(amc)
+
+
+def test_units_option_converts_positions_by_the_inch_convention(tmp_path):
+    amc = write_pair(tmp_path, [frame(1)])
+    plain, mm = acclaim.read(amc), acclaim.read(amc, units="mm")
+    assert plain.units == "in/0.5" and mm.units == "mm"
+    np.testing.assert_allclose(mm.positions, plain.positions * 25.4 / 0.5)
+
+
+def test_an_unknown_units_option_is_a_parameter_error(tmp_path):
+    with pytest.raises(ParameterError, match="units must be one of"):
+        acclaim.read(write_pair(tmp_path, [frame(1)]), units="furlong")
+
+
+# ----------------------------------------------------------------------- AMC
+
+def test_bone_lines_may_come_in_any_order(tmp_path):
+    shuffled = "1\nhand 30 40\nroot 1 2 3 0 0 0\narm 20\n"
+    ordered = frame(1, root="1 2 3 0 0 0", arm="20", hand="30 40")
+    a = acclaim.read(write_pair(tmp_path, [shuffled], stem="a"), asf=tmp_path / "tiny_01.asf")
+    b = acclaim.read(write_pair(tmp_path, [ordered], stem="b"), asf=tmp_path / "tiny_01.asf")
+    np.testing.assert_array_equal(a.positions, b.positions)
+
+
+def test_rate_defaults_to_120_and_frame_numbers_start_where_the_file_does(tmp_path):
+    motion = acclaim.read(write_pair(tmp_path, [frame(7), frame(8)]))
+    assert motion.rate == 120.0 and motion.first_frame == 7 and motion.n_frames == 2
+
+
+def test_nan_values_are_gaps(tmp_path):
+    motion = acclaim.read(write_pair(tmp_path, [frame(1), frame(2, arm="nan")]))
+    _, observed = acclaim.channels(motion)
+    assert observed.sum() == observed.size - 1 and not observed[1, 6]
+
+
+def test_a_bone_line_absent_from_a_frame_is_a_gap(tmp_path):
+    motion = acclaim.read(write_pair(tmp_path, [frame(1), frame(2, hand=None)]))
+    _, observed = acclaim.channels(motion)
+    assert not observed[1, 7:9].any() and observed[0].all()
+
+
+def test_a_gap_in_a_bone_hides_its_end_and_those_below_it(tmp_path):
+    motion = acclaim.read(write_pair(tmp_path, [frame(1, arm="nan")]))
+    np.testing.assert_array_equal(motion.observed[0], [True, False, False, True])
+
+
+def test_a_bone_line_with_the_wrong_count_names_the_line(tmp_path):
+    amc = write_pair(tmp_path, [frame(1, hand="1 2 3")])
+    with pytest.raises(FormatError, match=r"line 7: hand has 3 values, its dof lists 2"):
+        acclaim.read(amc)
+
+
+def test_a_bone_unknown_to_the_asf_is_a_format_error(tmp_path):
+    amc = write_pair(tmp_path, [frame(1) + "tail 3\n"])
+    with pytest.raises(FormatError, match="bone 'tail' not in the ASF"):
+        acclaim.read(amc)
+
+
+# ----------------------------------------------------------------------- finding the ASF
+
+def test_asf_with_the_same_stem_is_preferred(tmp_path):
+    amc = write_pair(tmp_path, [frame(1)], stem="09_12", asf_name="09_12.asf")
+    (tmp_path / "09.asf").write_text("not an asf")
+    assert acclaim.read(amc).source.asf_path.name == "09_12.asf"
+
+
+def test_asf_named_after_the_subject_prefix_is_found(tmp_path):
+    amc = write_pair(tmp_path, [frame(1)], stem="09_12", asf_name="09.asf")
+    (tmp_path / "other.asf").write_text("not an asf")
+    assert acclaim.read(amc).source.asf_path.name == "09.asf"
+
+
+def test_the_only_asf_in_the_folder_is_used(tmp_path):
+    amc = write_pair(tmp_path, [frame(1)], stem="walk", asf_name="skeleton.asf")
+    assert acclaim.read(amc).source.asf_path.name == "skeleton.asf"
+
+
+def test_missing_asf_error_names_what_was_tried(tmp_path):
+    amc = tmp_path / "09_12.amc"
+    amc.write_text(frame(1))
+    with pytest.raises(FormatError, match=r"09_12\.amc: .*tried 09_12\.asf and 09\.asf"):
+        acclaim.read(amc)
+
+
+# ----------------------------------------------------------------------- channel space
+
+def test_channels_unwrap_and_with_channels_rewraps_only_filled_cells(tmp_path):
+    frames = [frame(1, arm="170"), frame(2, arm="nan"), frame(3, arm="-172")]
+    motion = acclaim.read(write_pair(tmp_path, frames))
+    values, observed = acclaim.channels(motion)
+    np.testing.assert_allclose(values[[0, 2], 6], [170, 188])
+    values[1, 6] = 184.0
+    filled = acclaim.with_channels(motion, values, np.ones_like(observed))
+    np.testing.assert_allclose(filled.source.state.values[:, 6], [170, -176, -172])
+    assert filled.observed.all()
+
+
+# ----------------------------------------------------------------------- writing
+
+def test_filled_cell_is_written_in_place_with_six_significant_digits(tmp_path):
+    amc = write_pair(tmp_path, [frame(1, arm="10"), frame(2, arm="nan"), frame(3, arm="20")])
+    motion = acclaim.read(amc)
+    values, observed = acclaim.channels(motion)
+    values[1, 6] = 15.123456789
+    out = tmp_path / "out.amc"
+    acclaim.write(acclaim.with_channels(motion, values, np.ones_like(observed)), out)
+    before, after = amc.read_text().splitlines(), out.read_text().splitlines()
+    changed = [(a, b) for a, b in zip(before, after) if a != b]
+    assert changed == [("arm nan", "arm 15.1235")] and len(after) == len(before)
+
+
+def test_filled_bone_absent_from_its_frame_gets_a_line_at_the_frames_end(tmp_path):
+    amc = write_pair(tmp_path, [frame(1), frame(2, hand=None), frame(3)])
+    motion = acclaim.read(amc)
+    values, observed = acclaim.channels(motion)
+    out = tmp_path / "out.amc"
+    acclaim.write(acclaim.with_channels(motion, fill_by_interpolation(values, observed),
+                                        np.ones_like(observed)), out)
+    assert out.read_text() == amc.read_text().replace("arm 0\n3\n", "arm 0\nhand 0 0\n3\n")
+
+
+def test_radian_amc_is_written_back_in_radians(tmp_path):
+    amc = write_pair(tmp_path, [frame(1, arm="nan")], header=":FULLY-SPECIFIED\n")
+    motion = acclaim.read(amc)
+    values, observed = acclaim.channels(motion)
+    values[0, 6] = 90.0
+    out = tmp_path / "out.amc"
+    acclaim.write(acclaim.with_channels(motion, values, np.ones_like(observed)), out)
+    assert "arm 1.5708\n" in out.read_text()
+
+
+def test_writing_a_motion_without_amc_source_explains_why_not(tmp_path):
+    with pytest.raises(FormatError, match="AMC output needs an AMC input"):
+        acclaim.write(from_matrix(np.zeros((6, 10))), tmp_path / "out.amc")
+
+
+# ----------------------------------------------------------------------- real files
+
+# cgspeed's BVH of a CMU clip: each BVH joint sits at the END of the ASF bone its BVH parent
+# rotates (BVH point = bone start, AMC point = bone end). cgspeed dropped two lengths:
+# ``Neck`` has a zero offset (no ``thorax`` length) and ``LeftFingerBase``/``LThumb`` (and
+# right) have zero offsets (no ``lwrist`` length), so points above them differ in absolute
+# position while every bone still turns the same way.
+SAME_CHAIN = {  # BVH point -> AMC point, identical chains from the root
+    "Hips": "root", "LeftUpLeg": "lhipjoint", "LeftLeg": "lfemur", "LeftFoot": "ltibia",
+    "LeftToeBase": "lfoot", "LeftToeBase_End": "ltoes", "RightUpLeg": "rhipjoint",
+    "RightLeg": "rfemur", "RightFoot": "rtibia", "RightToeBase": "rfoot",
+    "RightToeBase_End": "rtoes", "Spine": "lowerback", "Spine1": "upperback",
+}
+SAME_BONE = {  # BVH point -> AMC bone whose vector (end minus parent's end) it reproduces
+    **{k: v for k, v in SAME_CHAIN.items() if k != "Hips"},
+    "Neck1": "lowerneck", "Head": "upperneck", "Head_End": "head",
+    "LeftArm": "lclavicle", "LeftForeArm": "lhumerus", "LeftHand": "lradius",
+    "LeftHandIndex1": "lhand", "LeftHandIndex1_End": "lfingers", "LThumb_End": "lthumb",
+    "RightArm": "rclavicle", "RightForeArm": "rhumerus", "RightHand": "rradius",
+    "RightHandIndex1": "rhand", "RightHandIndex1_End": "rfingers", "RThumb_End": "rthumb",
+}
+
+
+@pytest.fixture(scope="module")
+def cmu_10_01():
+    amc = acclaim.read(shared_file("cmu/10_01.amc"))
+    from_bvh = bvh.read(shared_file("cmu/10_01.bvh"))
+    return amc, from_bvh
+
+
+def test_cmu_10_01_amc_reads_801_frames_of_31_points(cmu_10_01):
+    amc, _ = cmu_10_01
+    assert amc.positions.shape == (801, 31, 3) and amc.observed.all()
+    assert amc.source.asf_path.name == "10.asf" and amc.units == "in/0.45"
+
+
+def test_cmu_10_01_amc_and_bvh_points_on_the_same_chain_agree(cmu_10_01):
+    amc, from_bvh = cmu_10_01
+    bvh_points = from_bvh.positions[1:, [from_bvh.labels.index(k) for k in SAME_CHAIN]]
+    amc_points = amc.positions[:, [amc.labels.index(v) for v in SAME_CHAIN.values()]]
+    assert np.abs(bvh_points - amc_points).max() < 1e-3
+
+
+def test_cmu_10_01_amc_and_bvh_bone_vectors_agree(cmu_10_01):
+    amc, from_bvh = cmu_10_01
+    bvh_skeleton = from_bvh.source.state.skeleton
+    amc_skeleton = amc.source.state.skeleton
+    for bvh_name, amc_name in SAME_BONE.items():
+        j = from_bvh.labels.index(bvh_name)
+        k = amc.labels.index(amc_name)
+        bvh_vector = from_bvh.positions[1:, j] - from_bvh.positions[1:, bvh_skeleton.parents[j]]
+        amc_vector = amc.positions[:, k] - amc.positions[:, amc_skeleton.parents[k]]
+        assert np.abs(bvh_vector - amc_vector).max() < 1e-3, bvh_name
+
+
+def test_patched_real_amc_differs_only_in_the_filled_cells(tmp_path):
+    source = shared_file("cmu/10_01.amc")
+    (tmp_path / "10.asf").write_bytes(shared_file("cmu/10.asf").read_bytes())
+    lines = source.read_bytes().decode("latin-1").splitlines(keepends=True)
+    punched = {}
+    for index, line in enumerate(lines):
+        if re.match(r"(lfemur|rhumerus|root) ", line) and 2000 < index < 2600:
+            token = list(re.finditer(r"\S+", line))[2]
+            punched[index] = line[:token.start()] + "nan" + line[token.end():]
+    gapped = tmp_path / "10_01.amc"
+    gapped.write_bytes("".join(punched.get(i, x) for i, x in enumerate(lines)).encode("latin-1"))
+    motion = acclaim.read(gapped)
+    values, observed = acclaim.channels(motion)
+    assert (~observed).sum() == len(punched)
+    filled = fill_by_interpolation(values, observed)
+    out = tmp_path / "out.amc"
+    acclaim.write(acclaim.with_channels(motion, filled, np.ones_like(observed)), out)
+
+    before = source.read_bytes().splitlines(keepends=True)
+    after = out.read_bytes().splitlines(keepends=True)
+    assert len(after) == len(before)
+    for index, (old, new) in enumerate(zip(before, after)):
+        if index not in punched:
+            assert new == old, f"line {index + 1} changed"
+        else:
+            old_tokens, new_tokens = old.split(), new.split()
+            assert new_tokens[:2] == old_tokens[:2] and new_tokens[3:] == old_tokens[3:]
+    back_values, back_observed = acclaim.channels(acclaim.read(out))
+    assert back_observed.all()
+    gap = ~observed
+    np.testing.assert_allclose(back_values[gap], filled[gap], rtol=1e-5, atol=1e-9)
+
+
+def test_writing_an_unchanged_amc_gives_the_same_bytes(tmp_path, cmu_10_01):
+    amc, _ = cmu_10_01
+    out = tmp_path / "same.amc"
+    acclaim.write(amc, out)
+    assert out.read_bytes() == shared_file("cmu/10_01.amc").read_bytes()
+
+
+@pytest.mark.slow
+def test_cmu_09_12_amc_reads_with_the_subject_asf():
+    motion = acclaim.read(shared_file("cmu/09_12.amc"))
+    assert motion.n_frames == 1918 and motion.observed.all()
+    assert motion.source.asf_path.name == "09.asf"

@@ -1,0 +1,312 @@
+"""BVH: reading, forward kinematics, channel space and the patching writer."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mocapfill.errors import FormatError
+from mocapfill.formats import bvh
+from mocapfill.motion import from_matrix
+from tests.conftest import shared_file, shared_files
+from tests.test_skeleton import rot
+
+CHAIN = """HIERARCHY
+ROOT Hips
+{
+  OFFSET 10 20 30
+  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+  JOINT Arm
+  {
+    OFFSET 1 0 0
+    CHANNELS 3 {order}
+    End Site
+    {
+      OFFSET 0 2 0
+    }
+  }
+}
+MOTION
+Frames: {frames}
+Frame Time: 0.01
+"""
+
+
+def write_bvh(tmp_path: Path, rows: list[str], order: str = "Zrotation Xrotation Yrotation",
+              name: str = "chain.bvh", frames: int | None = None) -> Path:
+    text = CHAIN.replace("{order}", order).replace(
+        "{frames}", str(len(rows) if frames is None else frames))
+    path = tmp_path / name
+    path.write_text(text + "".join(row + "\n" for row in rows))
+    return path
+
+
+def point(motion, label: str, frame: int = 0) -> np.ndarray:
+    return motion.positions[frame, motion.labels.index(label)]
+
+
+# ----------------------------------------------------------------------- reading and FK
+
+def test_labels_are_joints_then_end_sites_named_after_their_parent(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0"]))
+    assert motion.labels == ("Hips", "Arm", "Arm_End")
+
+
+def test_rate_is_one_over_frame_time(tmp_path):
+    assert bvh.read(write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0"])).rate == 100.0
+
+
+def test_root_position_channels_replace_the_root_offset(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, ["1 2 3 0 0 0 0 0 0"]))
+    np.testing.assert_allclose(point(motion, "Hips"), [1, 2, 3])
+
+
+def test_root_rotation_of_90_about_z_puts_the_child_on_the_y_axis(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, ["1 2 3 90 0 0 0 0 0"]))
+    np.testing.assert_allclose(point(motion, "Arm"), [1, 3, 3], atol=1e-12)
+
+
+def test_end_site_is_its_offset_turned_by_the_parent_joint(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, ["0 0 0 0 0 0 90 0 0"]))  # Arm: Z 90
+    np.testing.assert_allclose(point(motion, "Arm_End"), [1 - 2, 0, 0], atol=1e-12)
+
+
+@pytest.mark.parametrize("order", ["Zrotation Xrotation Yrotation",
+                                   "Zrotation Yrotation Xrotation"])
+def test_joint_rotation_composes_about_moving_axes_in_channel_order(tmp_path, order):
+    motion = bvh.read(write_bvh(tmp_path, ["0 0 0 0 0 0 30 40 50"], order=order))
+    axes = [word[0] for word in order.split()]
+    expected = rot(axes[0], 30) @ rot(axes[1], 40) @ rot(axes[2], 50) @ [0, 2, 0]
+    np.testing.assert_allclose(point(motion, "Arm_End") - point(motion, "Arm"), expected,
+                               atol=1e-12)
+
+
+def test_zxy_and_zyx_orders_give_different_rotations(tmp_path):
+    zxy = bvh.read(write_bvh(tmp_path, ["0 0 0 0 0 0 30 40 50"], name="a.bvh"))
+    zyx = bvh.read(write_bvh(tmp_path, ["0 0 0 0 0 0 30 40 50"], name="b.bvh",
+                             order="Zrotation Yrotation Xrotation"))
+    assert np.abs(point(zxy, "Arm_End") - point(zyx, "Arm_End")).max() > 0.1
+
+
+def test_nan_cells_are_gaps(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0", "0 0 0 0 0 0 nan 0 0"]))
+    values, observed = bvh.channels(motion)
+    assert not observed[1, 6] and observed.sum() == 17
+    assert np.isnan(values[1, 6])
+
+
+def test_a_gap_in_a_joint_rotation_hides_its_end_site_but_not_the_joint(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, ["0 0 0 0 0 0 nan 0 0"]))
+    np.testing.assert_array_equal(motion.observed[0], [True, True, False])
+
+
+def test_source_keeps_the_hierarchy_text_verbatim(tmp_path):
+    path = write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0"])
+    head = path.read_text().split("0 0 0 0 0 0 0 0 0")[0]
+    assert bvh.read(path).source.hierarchy == head
+
+
+def test_a_line_with_the_wrong_number_of_values_names_the_line(tmp_path):
+    path = write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0 0", "0 0 0 0 0 0 0 0 0"])
+    with pytest.raises(FormatError, match=r"line 19 holds 10 values.*9 channels"):
+        bvh.read(path)
+
+
+def test_a_non_numeric_cell_is_a_format_error(tmp_path):
+    with pytest.raises(FormatError, match="non-numeric"):
+        bvh.read(write_bvh(tmp_path, ["0 0 0 0 0 0 x 0 0"]))
+
+
+def test_a_file_without_motion_section_is_a_format_error(tmp_path):
+    path = tmp_path / "x.bvh"
+    path.write_text("HIERARCHY\nROOT a\n{\nOFFSET 0 0 0\n}\n")
+    with pytest.raises(FormatError, match="no MOTION"):
+        bvh.read(path)
+
+
+def test_fewer_frame_lines_than_declared_is_reported_as_truncated(tmp_path):
+    path = write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0"] * 3, frames=5)
+    expected = r"chain\.bvh: truncated: 3 complete frames read, 5 declared$"
+    with pytest.raises(FormatError, match=expected):
+        bvh.read(path)
+
+
+def test_real_file_cut_mid_motion_names_the_file_and_the_frame_counts(tmp_path):
+    data = shared_file("cmu/10_01.bvh").read_bytes()
+    cut = tmp_path / "cut.bvh"
+    cut.write_bytes(data[:len(data) // 2])
+    with pytest.raises(FormatError) as caught:
+        bvh.read(cut)
+    message = str(caught.value)
+    assert message.startswith(str(cut)) and "truncated" in message
+    assert re.search(r"truncated: \d+ complete frames read, 802 declared", message)
+
+
+# ----------------------------------------------------------------------- channel space
+
+def test_channels_unwraps_a_rotation_crossing_180(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, ["0 0 0 170 0 0 0 0 0", "0 0 0 179 0 0 0 0 0",
+                                           "0 0 0 -172 0 0 0 0 0"]))
+    values, _ = bvh.channels(motion)
+    np.testing.assert_allclose(values[:, 3], [170, 179, 188])
+
+
+def test_with_channels_rewraps_filled_cells_into_the_files_range(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, ["0 0 0 170 0 0 0 0 0", "0 0 0 nan 0 0 0 0 0",
+                                           "0 0 0 -172 0 0 0 0 0"]))
+    values, observed = bvh.channels(motion)
+    values[1, 3] = 184.0
+    filled = bvh.with_channels(motion, values, np.ones_like(observed))
+    np.testing.assert_allclose(filled.source.state.values[:, 3], [170, -176, -172])
+
+
+def test_with_channels_recomputes_positions_by_fk(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0"]))
+    values, observed = bvh.channels(motion)
+    values[0, 3] = 90.0                     # was observed: keeps 0, nothing moves
+    values[0, 0] = 5.0
+    assert np.allclose(bvh.with_channels(motion, values, observed).positions,
+                       motion.positions)
+
+
+def test_with_channels_fills_positions_of_filled_joints(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, ["0 0 0 nan 0 0 0 0 0"]))
+    assert not motion.observed[0, 1]
+    values, observed = bvh.channels(motion)
+    values[0, 3] = 90.0
+    filled = bvh.with_channels(motion, values, np.ones_like(observed))
+    assert filled.observed.all()
+    np.testing.assert_allclose(point(filled, "Arm"), [0, 1, 0], atol=1e-12)
+
+
+# ----------------------------------------------------------------------- writing
+
+def punch_nan(source: Path, target: Path, cells: list[tuple[int, int]]) -> None:
+    """Copy a BVH, replacing the given (frame, channel) tokens by ``nan``."""
+    lines = source.read_bytes().decode("latin-1").splitlines(keepends=True)
+    first = next(i for i, line in enumerate(lines) if line.lower().startswith("frame time"))
+    for frame, column in cells:
+        index = first + 1 + frame
+        tokens = list(re.finditer(r"\S+", lines[index]))
+        token = tokens[column]
+        lines[index] = lines[index][:token.start()] + "nan" + lines[index][token.end():]
+    target.write_bytes("".join(lines).encode("latin-1"))
+
+
+def fill_by_interpolation(values: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    filled = values.copy()
+    frames = np.arange(len(values))
+    for c in range(values.shape[1]):
+        gap = ~observed[:, c]
+        if gap.any():
+            filled[gap, c] = np.interp(frames[gap], frames[~gap], values[~gap, c])
+    return filled
+
+
+def test_patched_real_file_differs_only_in_the_filled_cells(tmp_path):
+    original = shared_file("cmu/10_01.bvh")
+    gapped = tmp_path / "gapped.bvh"
+    cells = [(f, c) for f in range(300, 340) for c in (3, 10, 40)] + [(5, 0), (700, 95)]
+    punch_nan(original, gapped, cells)
+    motion = bvh.read(gapped)
+    values, observed = bvh.channels(motion)
+    filled = fill_by_interpolation(values, observed)
+    out = tmp_path / "out.bvh"
+    bvh.write(bvh.with_channels(motion, filled, np.ones_like(observed)), out)
+
+    before = original.read_bytes().splitlines(keepends=True)
+    after = out.read_bytes().splitlines(keepends=True)
+    assert len(after) == len(before)
+    touched = {motion.source.frame_lines[f] for f, _ in cells}
+    for index, (old, new) in enumerate(zip(before, after)):
+        if index not in touched:
+            assert new == old, f"line {index + 1} changed"
+        else:
+            old_tokens, new_tokens = old.split(), new.split()
+            assert len(new_tokens) == len(old_tokens)
+            assert new[len(new.rstrip()):] == old[len(old.rstrip()):]   # same ending
+    assert out.read_bytes().startswith(motion.source.hierarchy.encode("latin-1"))
+    back = bvh.read(out)
+    back_values, back_observed = bvh.channels(back)
+    assert back_observed.all()
+    rows, cols = np.array(cells).T
+    np.testing.assert_allclose(back_values[rows, cols], filled[rows, cols], atol=6e-5)
+
+
+def test_writing_an_unchanged_read_gives_the_same_bytes(tmp_path):
+    original = shared_file("cmu/10_01.bvh")
+    out = tmp_path / "same.bvh"
+    bvh.write(bvh.read(original), out)
+    assert out.read_bytes() == original.read_bytes()
+
+
+def test_cells_made_missing_are_written_as_nan(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, ["1 2 3 0 0 0 0 0 0", "1 2 3 0 0 0 0 0 0"]))
+    values, observed = bvh.channels(motion)
+    observed[1, 7] = False
+    out = tmp_path / "gapped.bvh"
+    bvh.write(bvh.with_channels(motion, values, observed), out)
+    assert out.read_text().splitlines()[-1] == "1 2 3 0 0 0 0 nan 0"
+
+
+def test_filled_cells_use_the_files_decimals(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, ["1.123456 0 0 0 0 0 0 0 0",
+                                           "nan 0 0 0 0 0 0 0 0"]))
+    values, observed = bvh.channels(motion)
+    values[1, 0] = 1.0 / 3.0
+    out = tmp_path / "filled.bvh"
+    bvh.write(bvh.with_channels(motion, values, np.ones_like(observed)), out)
+    assert out.read_text().splitlines()[-1].split()[0] == "0.333333"
+
+
+def test_writing_a_motion_without_bvh_source_explains_why_not(tmp_path):
+    motion = from_matrix(np.zeros((6, 10)))
+    with pytest.raises(FormatError, match="BVH output needs a BVH input"):
+        bvh.write(motion, tmp_path / "out.bvh")
+
+
+def test_writing_positions_filled_outside_channel_space_is_refused(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, ["0 0 0 nan 0 0 0 0 0"]))
+    edited = motion.with_positions(np.zeros_like(motion.positions),
+                                   np.ones_like(motion.observed))
+    with pytest.raises(FormatError, match="outside channel space"):
+        bvh.write(edited, tmp_path / "out.bvh")
+
+
+# ----------------------------------------------------------------------- real files
+
+def test_cmu_10_01_reads_with_its_skeleton_and_rate():
+    motion = bvh.read(shared_file("cmu/10_01.bvh"))
+    assert motion.positions.shape == (802, 38, 3)
+    assert motion.rate == 120.0 and motion.units == "unknown"
+    assert motion.observed.all()
+    assert motion.labels[:3] == ("Hips", "LHipJoint", "LeftUpLeg")
+
+
+def test_scale_and_units_options_apply_to_positions_only():
+    path = shared_file("cmu/10_01.bvh")
+    plain = bvh.read(path)
+    scaled = bvh.read(path, scale=56.444, units="mm")
+    assert scaled.units == "mm"
+    np.testing.assert_allclose(scaled.positions, plain.positions * 56.444)
+    np.testing.assert_array_equal(bvh.channels(scaled)[0], bvh.channels(plain)[0])
+
+
+def test_joints_with_different_channel_orders_in_one_file_read():
+    motion = bvh.read(shared_file("bvh/bvh_test1.bvh"))
+    assert len(set(motion.source.state.skeleton.rotation_axes) - {""}) == 4
+    assert motion.observed.all()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", shared_files("bvh", ".bvh") + shared_files("cmu", ".bvh"),
+                         ids=lambda p: p.name)
+def test_every_shared_bvh_file_reads_and_writes_back_unchanged(path, tmp_path):
+    motion = bvh.read(path)
+    assert motion.n_frames > 0 and motion.observed.all()
+    assert np.isfinite(motion.positions).all()
+    out = tmp_path / path.name
+    bvh.write(motion, out)
+    assert out.read_bytes() == path.read_bytes()
