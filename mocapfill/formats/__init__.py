@@ -19,7 +19,7 @@ import tempfile
 from pathlib import Path
 from types import ModuleType
 
-from ..errors import FormatError
+from ..errors import FormatError, ParameterError
 from ..motion import Motion
 
 # Suffix -> module. Plain dict, no global mutable plugin state.
@@ -70,7 +70,7 @@ def read(path: str | os.PathLike, **options) -> Motion:
         raise FormatError(path, "is a directory, not a file", exit_code=2)
     try:
         return module.read(path, **options)
-    except FormatError:
+    except (FormatError, ParameterError):
         raise
     except MemoryError:
         raise FormatError(path, "file declares more data than fits in memory") from None

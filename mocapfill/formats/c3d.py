@@ -13,10 +13,11 @@ A sample is missing when its fourth word (residual) is negative or any coordinat
 finite. ``zero_is_missing`` adds exact (0, 0, 0) samples (all three coordinates, never
 one): ``"on"``, ``"off"``, or ``"auto"`` (default), which turns it on for Qualisys files.
 A file counts as Qualisys when MANUFACTURER:COMPANY contains "Qualisys", or when it
-carries QTM's gap signature: at least one sample stored as exactly (0, 0, 0) whose fourth
-word is 0x7FFF (all seven camera bits set, residual byte 255), a combination no measured
-or computed sample has. QTM exports without a MANUFACTURER group (c3d.org Sample26) write
-every gap that way.
+carries QTM's gap signature: a float file with at least one sample stored as exactly
+(0, 0, 0) whose fourth word is 65535.0 (all 16 bits set, i.e. -1 read as unsigned, so
+"valid" by the sign rule), a combination no measured or computed sample has. QTM exports
+without a MANUFACTURER group (c3d.org Sample26) write every gap that way. Zero samples of
+model outputs (an angle or a power may be exactly 0) are never made missing.
 
 Points listed in POINT:ANGLES, FORCES, MOMENTS, POWERS, SCALARS or REACTIONS (model
 outputs; matched by label, with or without a Vicon ``Subject:`` prefix) are read but get
@@ -33,22 +34,22 @@ written as a new Intel float C3D.
 """
 from __future__ import annotations
 
-import hashlib
 import math
 import re
 import struct
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError
+from ..errors import FormatError, ParameterError
 from ..motion import Motion
 
 PROCESSORS = {84: "intel", 85: "dec", 86: "mips"}
 # Parameters listing POINT entries that are model outputs, not marker trajectories.
 MODEL_OUTPUT_LISTS = re.compile(r"(ANGLES|FORCES|MOMENTS|POWERS|SCALARS|REACTIONS)\d*")
-QUALISYS_GAP_WORD = 0x7FFF
+QUALISYS_GAP_WORD = 0xFFFF  # a float fourth word of 65535: 16 bits all set
 INT16_MAX = 32767
 INT16_MIN = -32768
 
@@ -70,8 +71,8 @@ class C3DSource:
     ----------
     path
         The file that was read.
-    size, sha256
-        Its size and digest when read; the writer refuses to patch a changed file.
+    size, crc32
+        Its size and CRC-32 when read; the writer refuses to patch a changed file.
     processor
         "intel", "dec" or "mips".
     is_float
@@ -91,11 +92,13 @@ class C3DSource:
         that were False here).
     fillable
         (markers,) bool, False for model outputs; those points are never patched.
+    zeros_are_gaps
+        Whether exact (0, 0, 0) samples were read as missing (``zero_is_missing``).
     """
 
     path: Path
     size: int
-    sha256: str
+    crc32: int
     processor: str
     is_float: bool
     scale: float
@@ -105,6 +108,7 @@ class C3DSource:
     point_index: np.ndarray
     observed: np.ndarray
     fillable: np.ndarray
+    zeros_are_gaps: bool = False
 
     @property
     def word_size(self) -> int:
@@ -149,7 +153,7 @@ def _parse_parameters(data: bytes, start: int, processor: str) -> dict[str, dict
     groups: dict[int, str] = {}
     raw: list[tuple[int, str, _Param]] = []
     pos = start + 4
-    end = len(data)
+    end = min(len(data), start + 255 * 512)       # the block count is one byte
     while pos + 2 <= end:
         n_chars, group_id = struct.unpack_from("bb", data, pos)
         n_chars = abs(n_chars)
@@ -235,48 +239,343 @@ def _layout(path: Path, data: bytes) -> _Layout:
     uint = header.astype(np.int64) & 0xFFFF
     header_scale, header_rate = _decode_floats(data[12:16] + data[20:24], processor)
 
-    def first(name: str, default: float) -> float:
+    def point_value(name: str, default: float) -> float:
         values = _numbers(point.get(name), processor)
         return float(values[0]) if values.size and np.isfinite(values[0]) else default
 
-    n_points = int(first("USED", uint[1])) & 0xFFFF
-    analog_words = int(uint[2])
-    scale = first("SCALE", float(header_scale))
+    n_points = int(point_value("USED", uint[1])) & 0xFFFF
+    scale = point_value("SCALE", float(header_scale))
     if not np.isfinite(scale) or scale == 0:
         scale = -1.0 if not np.isfinite(header_scale) or header_scale <= 0 else header_scale
-    rate = first("RATE", float(header_rate))
-    is_float = scale < 0
-    word = 4 if is_float else 2
+    rate = point_value("RATE", float(header_rate))
+    rate = rate if np.isfinite(rate) and rate > 0 else 0.0
+    word = 4 if scale < 0 else 2
     data_start = (int(uint[8]) - 1) * 512
-    if data_start < 512 or data_start > len(data):
-        start_block = int(first("DATA_START", 0)) & 0xFFFF
-        data_start = (start_block - 1) * 512
-    if data_start < 512 or data_start > len(data):
-        raise FormatError(path, f"data section start {data_start} is outside the file")
-    frame_stride = (4 * n_points + analog_words) * word
+    if not 512 <= data_start <= len(data):
+        data_start = ((int(point_value("DATA_START", 0)) & 0xFFFF) - 1) * 512
+    if not 512 <= data_start <= len(data):
+        raise FormatError(path, "data section start is outside the file")
+    data_bytes = len(data) - data_start
     n_frames = _frame_count(params, processor, uint)
-    available = (len(data) - data_start) // frame_stride if frame_stride else n_frames
-    if n_frames > available:
+    if n_frames is None:  # no usable count anywhere: whatever whole frames the file holds
+        n_frames = data_bytes // ((4 * n_points + int(uint[2])) * word or 1)
+    # Header word 3 should be analog channels x samples per frame; some writers store the
+    # channel count only, so the candidate that fills the data section most snugly wins.
+    strides = [(4 * n_points + analog) * word for analog in _analog_words(params, processor, uint,
+                                                                         rate)]
+    fitting = [s for s in strides if n_frames * s <= data_bytes]
+    if not fitting:
+        available = data_bytes // strides[0] if strides[0] else 0
         raise FormatError(path, f"truncated: {available} of {n_frames} frames present")
-    return _Layout(processor, params, n_points, n_frames, is_float, abs(scale), data_start,
-                   frame_stride, rate if np.isfinite(rate) and rate > 0 else 0.0,
-                   int(uint[3]))
+    frame_stride = max(fitting)
+    return _Layout(processor, params, n_points, n_frames, scale < 0, abs(scale), data_start,
+                   frame_stride, rate, int(uint[3]))
+
+
+def _analog_words(params: dict[str, dict[str, _Param]], processor: str, header: np.ndarray,
+                  rate: float) -> list[int]:
+    """Candidate analog words per frame, the header's first."""
+    analog = params.get("ANALOG", {})
+    used = _numbers(analog.get("USED"), processor)
+    candidates = [int(header[2])]
+    if used.size:
+        channels = int(used[0]) & 0xFFFF
+        candidates.append(channels * int(header[9]))
+        analog_rate = _numbers(analog.get("RATE"), processor)
+        if analog_rate.size and rate > 0 and np.isfinite(analog_rate[0]):
+            candidates.append(channels * round(float(analog_rate[0]) / rate))
+    return candidates
 
 
 def _frame_count(params: dict[str, dict[str, _Param]], processor: str,
-                 header: np.ndarray) -> int:
-    """Frames in the trial; past 65535 the header cannot say, so longer counts win."""
-    count = max(int(header[4]) - int(header[3]) + 1, 0)
+                 header: np.ndarray) -> int | None:
+    """Frames in the trial: the header's count, or a longer parameter past 65535 frames."""
+    count = int(header[4]) - int(header[3]) + 1
     point, trial = params.get("POINT", {}), params.get("TRIAL", {})
-    frames = _numbers(point.get("FRAMES"), processor)
-    if frames.size and frames[0] != 0:
-        count = max(count, int(frames[0]) & 0xFFFF)
-    long_frames = _numbers(point.get("LONG_FRAMES"), processor)
-    if long_frames.size and np.isfinite(long_frames[0]) and long_frames[0] > 0:
-        count = max(count, int(long_frames[0]))
+    longer = list(_numbers(point.get("LONG_FRAMES"), processor)[:1])
     start = _numbers(trial.get("ACTUAL_START_FIELD"), processor).astype(np.int64) & 0xFFFF
     end = _numbers(trial.get("ACTUAL_END_FIELD"), processor).astype(np.int64) & 0xFFFF
     if start.size == 2 and end.size == 2:
-        span = int(end[0] + (end[1] << 16)) - int(start[0] + (start[1] << 16)) + 1
-        count = max(count, span)
+        longer.append(int(end[0] + (end[1] << 16)) - int(start[0] + (start[1] << 16)) + 1)
+    longer = [int(n) for n in longer if np.isfinite(n) and n > 65535]
+    if longer and (header[4] == 0xFFFF or count <= 0):
+        return max(longer)
+    if count <= 0:
+        frames = _numbers(point.get("FRAMES"), processor)
+        return int(frames[0]) & 0xFFFF if frames.size and frames[0] != 0 else None
     return count
+
+
+def _labels(point: dict[str, _Param], n_points: int) -> list[str]:
+    """POINT:LABELS + LABELS2, LABELS3..., padded with POINT{n} and made unique."""
+    names = _strings(point.get("LABELS"))
+    extra = 2
+    while f"LABELS{extra}" in point:
+        names += _strings(point[f"LABELS{extra}"])
+        extra += 1
+    names = names[:n_points] + [""] * max(n_points - len(names), 0)
+    names = [name or f"POINT{i + 1}" for i, name in enumerate(names)]
+    seen: set[str] = set(names)
+    unique: list[str] = []
+    counts: dict[str, int] = {}
+    for name in names:
+        if name in counts:  # a repeat: LASI, LASI_2, LASI_3 ... skipping names already used
+            while True:
+                counts[name] += 1
+                candidate = f"{name}_{counts[name]}"
+                if candidate not in seen:
+                    break
+            seen.add(candidate)
+            unique.append(candidate)
+        else:
+            counts[name] = 1
+            unique.append(name)
+    return unique
+
+
+def _model_outputs(point: dict[str, _Param], labels: list[str], n_points: int) -> np.ndarray:
+    """(points,) bool, True for points named in POINT:ANGLES, FORCES, ... (model outputs)."""
+    listed: set[str] = set()
+    for name, param in point.items():
+        if MODEL_OUTPUT_LISTS.fullmatch(name):
+            listed.update(s for s in _strings(param) if s)
+    listed |= {s.rsplit(":", 1)[-1] for s in listed}
+    return np.array([lab in listed or lab.rsplit(":", 1)[-1] in listed
+                     for lab in labels[:n_points]], dtype=bool)
+
+
+def _units(point: dict[str, _Param]) -> str:
+    """POINT:UNITS normalised ("mete", "meters" -> "m"); "mm" when absent."""
+    raw = next(iter(_strings(point.get("UNITS"))), "").strip().lower()
+    if not raw or raw.startswith(("mm", "milli")):
+        return "mm"
+    if raw.startswith(("cm", "centi")):
+        return "cm"
+    if raw == "m" or raw.startswith("met"):
+        return "m"
+    if raw.startswith("in"):
+        return "in"
+    return raw
+
+
+def read(path: Path, *, zero_is_missing: str = "auto") -> Motion:
+    """Read the marker trajectories of a C3D file.
+
+    Parameters
+    ----------
+    path
+        The C3D file.
+    zero_is_missing
+        ``"on"``: samples stored as exactly (0, 0, 0) are also missing; ``"off"``: never;
+        ``"auto"``: on for Qualisys files (see the module docstring).
+
+    Returns
+    -------
+    Motion
+        Positions in the file's POINT:UNITS, with a :class:`C3DSource` for patching.
+
+    Raises
+    ------
+    FormatError
+        Empty, not C3D, truncated, or inconsistent counts.
+    ParameterError
+        ``zero_is_missing`` is not one of the three values.
+    """
+    if zero_is_missing not in ("auto", "on", "off"):
+        raise ParameterError(f"zero_is_missing must be 'auto', 'on' or 'off', "
+                             f"not {zero_is_missing!r}")
+    path = Path(path)
+    data = path.read_bytes()
+    layout = _layout(path, data)
+    n_frames, n_points = layout.n_frames, layout.n_points
+    word = 4 if layout.is_float else 2
+    block = np.frombuffer(data, np.uint8, count=n_frames * layout.frame_stride,
+                          offset=layout.data_start)
+    records = block.reshape(n_frames, layout.frame_stride)[:, :4 * word * n_points]
+    if layout.is_float:
+        words = _decode_floats(np.ascontiguousarray(records), layout.processor)
+    else:
+        words = np.ascontiguousarray(records).view(_int_dtype(layout.processor))
+    words = words.reshape(n_frames, n_points, 4)
+    coords, fourth = words[:, :, :3], words[:, :, 3]
+    observed = fourth >= 0
+    if layout.is_float:
+        observed &= np.isfinite(coords).all(axis=2)
+
+    point = layout.params.get("POINT", {})
+    labels = _labels(point, n_points)
+    fillable = ~_model_outputs(point, labels, n_points)
+    if zero_is_missing == "auto":
+        company = " ".join(_strings(layout.params.get("MANUFACTURER", {}).get("COMPANY")))
+        signature = fourth == QUALISYS_GAP_WORD       # cheap test first; zeros only if needed
+        qtm_gaps = signature.any() and (signature & (coords == 0).all(axis=2)).any()
+        zero_is_missing = "on" if "qualisys" in company.lower() or qtm_gaps else "off"
+    if zero_is_missing == "on":  # model outputs (an angle, a power) may well be exactly 0
+        observed &= ~((coords == 0).all(axis=2) & fillable)
+    positions = coords.astype(np.float64)
+    if not layout.is_float:
+        positions *= layout.scale
+    positions[~observed] = np.nan
+    point_index = np.arange(n_points)
+    for frozen in (observed, point_index):
+        frozen.setflags(write=False)
+    source = C3DSource(path=path, size=len(data), crc32=zlib.crc32(data),
+                       processor=layout.processor, is_float=layout.is_float,
+                       scale=layout.scale, data_start=layout.data_start,
+                       frame_stride=layout.frame_stride, n_points=n_points,
+                       point_index=point_index, observed=observed,
+                       fillable=np.array(fillable), zeros_are_gaps=zero_is_missing == "on")
+    return Motion(positions, observed.copy(), tuple(labels), layout.rate, _units(point),
+                  fillable=fillable, source=source, path=path, first_frame=layout.first_frame)
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def write(motion: Motion, path: Path, **_options) -> None:
+    """Write ``motion`` as C3D: a byte patch of its source file, or a new Intel float file.
+
+    Parameters
+    ----------
+    motion
+        The clip. When its ``source`` is a :class:`C3DSource`, only samples that were
+        missing in that file and are observed in ``motion`` are written (fillable points
+        only); everything else in the output is a byte copy of the original.
+    path
+        Output file.
+
+    Raises
+    ------
+    FormatError
+        The source file changed since it was read, the motion no longer matches it, or a
+        filled value does not fit the file's int16 storage.
+    """
+    path = Path(path)
+    if isinstance(motion.source, C3DSource):
+        path.write_bytes(_patched(motion, motion.source, path))
+        return
+    try:
+        path.write_bytes(_new_file(motion))
+    except FormatError as exc:
+        raise FormatError(path, exc.problem) from None
+
+
+def _patched(motion: Motion, source: C3DSource, out: Path) -> bytes:
+    """The source file's bytes with the newly observed samples written in."""
+    try:
+        original = source.path.read_bytes()
+    except OSError as exc:
+        raise FormatError(source.path, f"cannot re-read the original to patch it ({exc})") from None
+    if len(original) != source.size or zlib.crc32(original) != source.crc32:
+        raise FormatError(source.path, "changed since it was read; read it again before writing")
+    if motion.observed.shape != source.observed.shape:
+        raise FormatError(out, f"motion is {motion.observed.shape} (frames, markers) but its "
+                               f"source C3D holds {source.observed.shape}; cannot patch")
+    fill = motion.observed & ~source.observed & (source.fillable & motion.fillable)[None, :]
+    frames, markers = np.nonzero(fill)
+    if frames.size == 0:
+        return original
+    values = motion.positions[frames, markers]                     # (k, 3), finite
+    if source.is_float:
+        if not np.isfinite(values.astype(np.float32) * np.float32(4)).all():
+            raise FormatError(out, "a filled value overflows the float32 range of this C3D")
+        encoded = _encode_floats(np.column_stack([values, np.zeros(len(values))]),
+                                 source.processor)
+    else:
+        raw = np.rint(values / source.scale)
+        if raw.max() > INT16_MAX or raw.min() < INT16_MIN:
+            worst = float(np.abs(values).max())
+            raise FormatError(out, f"a filled value ({worst:g}) would overflow the int16 range "
+                                   f"of this integer C3D (scale {source.scale:g}, limit "
+                                   f"{INT16_MAX * source.scale:g}); write a float C3D instead")
+        words = np.column_stack([raw, np.zeros(len(raw))]).astype(_int_dtype(source.processor))
+        encoded = words.view(np.uint8)
+    record = 4 * source.word_size
+    offsets = (source.data_start + frames * source.frame_stride
+               + source.point_index[markers] * record)
+    patched = np.frombuffer(bytearray(original), np.uint8)
+    patched[offsets[:, None] + np.arange(record)] = encoded.reshape(len(offsets), record)
+    return patched.tobytes()
+
+
+def _param_entry(group_id: int, name: str, type_code: int, dims: tuple[int, ...],
+                 data: bytes) -> bytes:
+    body = struct.pack("<bB", type_code, len(dims)) + bytes(dims) + data + b"\x00"
+    return (struct.pack("<bb", len(name), group_id) + name.encode()
+            + struct.pack("<h", 2 + len(body)) + body)
+
+
+def _group_entry(group_id: int, name: str) -> bytes:
+    return struct.pack("<bb", len(name), -group_id) + name.encode() + struct.pack("<hB", 3, 0)
+
+
+def _char_param(group_id: int, name: str, strings: list[str] | str) -> bytes:
+    """A char parameter: one string (1-D) or a list of strings (2-D, width x count)."""
+    single = isinstance(strings, str)
+    encoded = [s.encode("latin-1", "replace")[:255] for s in ([strings] if single else strings)]
+    width = max((len(s) for s in encoded), default=0) or 1
+    data = b"".join(s.ljust(width) for s in encoded)
+    return _param_entry(group_id, name, -1, (width,) if single else (width, len(encoded)), data)
+
+
+def _number_param(group_id: int, name: str, values: list[float], floating: bool) -> bytes:
+    data = np.asarray(values, "<f4" if floating else "<u2").tobytes()
+    dims = () if len(values) == 1 else (len(values),)
+    return _param_entry(group_id, name, 4 if floating else 2, dims, data)
+
+
+def _new_file(motion: Motion) -> bytes:
+    """A new Intel float C3D: header, POINT/ANALOG/TRIAL parameters, float32 frames.
+
+    Missing samples are stored as (0, 0, 0) with residual -1; observed samples with
+    residual 0, since no residual is known (c3d.org reads that as "computed").
+    """
+    n_frames, n_markers = motion.observed.shape
+    if n_markers > 0xFFFF:
+        raise FormatError(None, f"{n_markers} markers do not fit one C3D file (65535 at most)")
+    finite = np.abs(motion.positions[motion.observed])
+    scale = -(float(finite.max()) / 32000 if finite.size and finite.max() > 0 else 1.0)
+    first_frame = motion.first_frame if 1 <= motion.first_frame <= 0xFFFF else 1
+    last_frame = first_frame + n_frames - 1
+    labels = list(motion.labels)
+    chunks = [labels[i:i + 255] for i in range(0, max(n_markers, 1), 255)]
+
+    params = [_group_entry(1, "POINT"),
+              _number_param(1, "USED", [n_markers], False),
+              _number_param(1, "FRAMES", [min(n_frames, 0xFFFF)], False),
+              _number_param(1, "SCALE", [scale], True),
+              _number_param(1, "RATE", [motion.rate], True),
+              _number_param(1, "DATA_START", [0], False),          # set below
+              _char_param(1, "UNITS", motion.units)]
+    for i, chunk in enumerate(chunks):
+        suffix = "" if i == 0 else str(i + 1)
+        params += [_char_param(1, f"LABELS{suffix}", chunk),
+                   _char_param(1, f"DESCRIPTIONS{suffix}", [""] * len(chunk))]
+    if n_frames > 0xFFFF:
+        params.append(_number_param(1, "LONG_FRAMES", [n_frames], True))
+    params += [_group_entry(2, "ANALOG"),
+               _number_param(2, "USED", [0], False),
+               _number_param(2, "RATE", [motion.rate], True),
+               _number_param(2, "GEN_SCALE", [1.0], True),
+               _group_entry(3, "TRIAL"),
+               _number_param(3, "ACTUAL_START_FIELD", [first_frame, 0], False),
+               _number_param(3, "ACTUAL_END_FIELD", [last_frame & 0xFFFF, last_frame >> 16],
+                             False)]
+    section_size = 4 + sum(len(p) for p in params) + 2
+    n_blocks = -(-section_size // 512)
+    data_block = 2 + n_blocks
+    params[5] = _number_param(1, "DATA_START", [data_block], False)
+    section = (bytes([1, 0x50, n_blocks, 84]) + b"".join(params)).ljust(n_blocks * 512, b"\0")
+
+    header = bytearray(512)
+    struct.pack_into("<BBHHHHHfHHf", header, 0, 2, 0x50, n_markers, 0, first_frame,
+                     min(last_frame, 0xFFFF), 0, scale, data_block, 1, motion.rate)
+    struct.pack_into("<H", header, 298, 0x3039)                  # 4-character event labels
+
+    frames = np.zeros((n_frames, n_markers, 4), "<f4")
+    frames[:, :, :3] = np.where(motion.observed[:, :, None], motion.positions, 0.0)
+    frames[:, :, 3] = np.where(motion.observed, 0.0, -1.0)
+    body = frames.tobytes()
+    body += b"\0" * (-len(body) % 512)
+    return bytes(header) + section + body
+
