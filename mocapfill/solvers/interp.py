@@ -29,7 +29,7 @@ from scipy.interpolate import CubicSpline, PchipInterpolator
 
 from ._linalg import linear_fill
 
-__all__ = ["linear", "spline", "pchip"]
+__all__ = ["linear", "pchip", "spline"]
 
 
 def _check(matrix: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

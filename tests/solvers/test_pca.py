@@ -1,0 +1,105 @@
+"""Gløersen & Federolf PCA filling: exact on rigidly coupled markers, graceful fallbacks."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mocapfill.solvers import interp, pca
+
+from ._synth import masked, rel, unit_rms
+
+
+def coupled_markers(seed: int, markers: int = 15, n: int = 600, r: int = 6,
+                    coupled: int = 3) -> np.ndarray:
+    """Low-rank random motion; the last ``coupled`` markers are fixed affine combinations of
+    4 others (weights summing to 1: they move rigidly with them)."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 4 * np.pi, n)
+    Z = np.vstack([np.sin((q + 1) * t / 2 + rng.uniform(0, 6)) for q in range(r)])
+    Z += 0.1 * rng.standard_normal(Z.shape)
+    free = markers - coupled
+    base = (rng.standard_normal((3 * free, r)) @ Z
+            + 3 * rng.standard_normal((3 * free, 1))).reshape(free, 3, n)
+    extra = []
+    for _ in range(coupled):
+        c = rng.standard_normal(4)
+        c /= c.sum()
+        extra.append(np.tensordot(c, base[rng.choice(free, 4, replace=False)], axes=1))
+    return unit_rms(np.concatenate([base, np.array(extra)]).reshape(3 * markers, n))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_recovers_rigidly_coupled_marker_in_long_gap(seed):
+    M = coupled_markers(seed)
+    observed = np.ones(M.shape, dtype=bool)
+    observed[-3:, 150:450] = False          # half the clip
+    out = pca.complete(masked(M, observed), observed, transform="inverse")
+    assert rel(out, M, ~observed) < 1e-6
+    np.testing.assert_array_equal(out[observed], M[observed])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_two_gapped_markers_exact_when_all_components_kept(seed):
+    # With the 99 % singular-value cut a coupled marker whose partners are far (small
+    # weights) can lose a component; keeping every component makes both fills exact.
+    M = coupled_markers(seed)
+    observed = np.ones(M.shape, dtype=bool)
+    observed[-3:, 150:450] = False
+    observed[-6:-3, 500:560] = False        # a second gapped marker, not overlapping
+    out = pca.complete(masked(M, observed), observed, min_cum_sv=1.0, transform="inverse")
+    assert rel(out, M, ~observed) < 1e-6
+
+
+def test_published_transform_is_close_but_not_exact():
+    # The default (published B = Vᵀ V₀) is only approximately exact on low-rank data.
+    M = coupled_markers(0)
+    observed = np.ones(M.shape, dtype=bool)
+    observed[-3:, 150:450] = False
+    err = rel(pca.complete(masked(M, observed), observed), M, ~observed)
+    assert 1e-6 < err < 0.1
+
+
+def walking_clip() -> np.ndarray:
+    """The repository's walking sample (123 rows × 600 frames), rows unit RMS."""
+    path = Path(__file__).resolve().parents[2] / "sample_data" / "walk_truth.csv"
+    if not path.exists():
+        pytest.skip("sample_data/walk_truth.csv absent")
+    return unit_rms(np.genfromtxt(path, delimiter=",", skip_header=2)[:, 2:].T)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_no_complete_frame_still_fills_better_than_linear(seed):
+    M = walking_clip()
+    rng = np.random.default_rng(seed)
+    observed = np.ones(M.shape, dtype=bool)
+    for j in range(M.shape[0] // 3):      # every marker has a gap: no complete frame
+        start = int(rng.integers(0, M.shape[1] - 60))
+        observed[3 * j:3 * j + 3, start:start + 60] = False
+    data = masked(M, observed)
+    out = pca.complete(data, observed)
+    assert np.isfinite(out).all()
+    assert rel(out, M, ~observed) < 0.6 * rel(interp.linear(data, observed), M, ~observed)
+
+
+def test_never_observed_marker_is_zero_and_lonely_frames_finite():
+    M = coupled_markers(4)
+    observed = np.ones(M.shape, dtype=bool)
+    observed[3:6] = False                   # marker 1 never observed
+    observed[6:, 100:120] = False           # only marker 0 present in these frames
+    observed[:, 300] = False                # a frame where nothing is observed
+    out = pca.complete(masked(M, observed), observed)
+    assert np.isfinite(out).all()
+    np.testing.assert_array_equal(out[3:6], 0.0)
+
+
+def test_rejects_bad_options():
+    M = coupled_markers(0)
+    observed = np.ones(M.shape, dtype=bool)
+    with pytest.raises(ValueError):
+        pca.complete(M, observed, transform="nope")
+    with pytest.raises(ValueError):
+        pca.complete(M[:-1], observed[:-1])
+    with pytest.raises(TypeError):
+        pca.complete(M, observed, bogus=1)

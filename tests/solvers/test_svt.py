@@ -1,0 +1,39 @@
+"""Singular value thresholding: the shrinkage operator and completion of a low-rank matrix."""
+from __future__ import annotations
+
+import numpy as np
+
+from mocapfill.solvers import _linalg, svt
+
+from ._synth import masked, rel
+
+
+def test_shrinkage_operator_subtracts_tau_and_zeroes_small_values():
+    rng = np.random.default_rng(0)
+    U, _ = np.linalg.qr(rng.standard_normal((8, 5)))
+    V, _ = np.linalg.qr(rng.standard_normal((12, 5)))
+    sigma = np.array([9.0, 5.0, 3.0, 1.5, 0.5])
+    X = (U * sigma) @ V.T
+    Y, rank = _linalg.svt(X, 2.0)
+    assert rank == 3
+    np.testing.assert_allclose(np.linalg.svd(Y, compute_uv=False)[:5],
+                               [7.0, 3.0, 1.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(Y, (U[:, :3] * [7.0, 3.0, 1.0]) @ V[:, :3].T, atol=1e-12)
+    Z, rank0 = _linalg.svt(X, 10.0)
+    assert rank0 == 0 and not Z.any()
+
+
+def test_soft_threshold():
+    np.testing.assert_array_equal(_linalg.soft_threshold(np.array([-3.0, -0.5, 0.0, 2.0]), 1.0),
+                                  [-2.0, 0.0, 0.0, 1.0])
+
+
+def test_completes_rank3_with_30_percent_missing():
+    rng = np.random.default_rng(1)
+    M = rng.standard_normal((60, 3)) @ rng.standard_normal((3, 200))
+    M /= np.sqrt((M ** 2).mean())
+    observed = rng.random(M.shape) > 0.3
+    data = masked(M, observed)
+    out = svt.complete(data, observed)
+    assert rel(out, M, ~observed) < 1e-3
+    assert np.isnan(data[~observed]).all()
