@@ -358,10 +358,14 @@ def _solver_options(**values) -> dict:
 def simulate(in_path: Path, out_path: Path, mr, ml, n_markers, seed, zero_is_missing) -> None:
     """Add gaps to IN with the paper's protocols (on top of its own gaps), write OUT."""
     from . import formats
-    from .gaps import simulate_gaps
+    from .gaps import simulate_channel_gaps, simulate_gaps
 
     motion = _read(in_path, zero_is_missing)
-    gapped = simulate_gaps(motion, mr=mr, ml=ml, markers=n_markers, seed=seed)
+    # A skeleton clip written back to its own format loses joint channels (nan cells);
+    # otherwise the protocols remove marker (or joint position) samples.
+    simulate = simulate_channel_gaps if _same_skeleton_format(in_path, out_path) \
+        else simulate_gaps
+    gapped = simulate(motion, mr=mr, ml=ml, markers=n_markers, seed=seed)
     formats.write(gapped, out_path)
     removed = int((motion.observed & ~gapped.observed).sum())
     click.echo(f"{in_path} -> {out_path}: {removed} samples removed", err=True)
@@ -391,6 +395,12 @@ def rank(in_path: Path, theta: float, as_json: bool, zero_is_missing: str) -> No
                                                    estimate.singular_values]}))
     else:
         click.echo(f"rank: {estimate.rank}")
+
+
+def _same_skeleton_format(in_path: Path, out_path: Path) -> bool:
+    """True when IN and OUT are both BVH or both AMC: work in joint-channel space."""
+    suffix = in_path.suffix.lower()
+    return suffix in (".bvh", ".amc") and out_path.suffix.lower() == suffix
 
 
 def _evidence_markers(motion):

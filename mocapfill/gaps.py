@@ -137,3 +137,32 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
         first = int(np.flatnonzero(motion.observed[:, j])[0])
         observed[first, j] = True
     return motion.with_positions(motion.positions, observed)
+
+
+def simulate_channel_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = None,
+                          markers: int = 10, seed: int | None = None) -> Motion:
+    """The paper's protocols on a skeleton clip (BVH, AMC), removing joint channels.
+
+    The "markers" of the protocols are the joints that own channels: a removed joint sample
+    loses all its channels in that frame (written back as ``nan`` cells). The positions of
+    the clip follow by forward kinematics.
+    """
+    from . import formats
+
+    module = formats.format_module(motion.path) if motion.path is not None else None
+    if module is None or not hasattr(module, "channels"):
+        raise ParameterError("channel gaps need a clip read from a BVH or AMC file")
+    values, observed = module.channels(motion)
+    skeleton = motion.source.state.skeleton
+    columns = [list(r) + list(t) for r, t in zip(skeleton.rotation_columns,
+                                                 skeleton.translation_columns)]
+    joints = [j for j, cols in enumerate(columns) if cols]
+    joint_observed = np.stack([observed[:, columns[j]].all(axis=1) for j in joints], axis=1)
+    proxy = Motion(np.zeros(joint_observed.shape + (3,)), joint_observed,
+                   tuple(motion.labels[j] for j in joints), motion.rate)
+    removed = proxy.observed & ~simulate_gaps(proxy, mr=mr, ml=ml, markers=markers,
+                                              seed=seed).observed
+    new_observed = observed.copy()
+    for k, j in enumerate(joints):
+        new_observed[:, columns[j]] &= ~removed[:, k, None]
+    return module.with_channels(motion, values, new_observed)

@@ -13,12 +13,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import NothingToRepair, ParameterError
-from .gaps import Gap, find_gaps
+from .gaps import Gap, find_gaps, missing_runs
 from .motion import Motion
 from .scaling import UnitScale
 from .solvers import get_method
 
 ENDS = ("leave", "hold", "extrapolate")
+SPACES = ("positions", "channels")
 
 # Gap statuses as reported (one per gap).
 FILLED = "filled"
@@ -71,6 +72,7 @@ class RepairOptions:
     markers: tuple[str, ...] = ()
     exclude: tuple[str, ...] = ()
     max_jump_mm: float | None = None
+    space: str = "positions"
 
     def __post_init__(self) -> None:
         if self.ends not in ENDS:
@@ -79,6 +81,8 @@ class RepairOptions:
             raise ParameterError(f"max gap must be ≥ 0 frames, got {self.max_gap_frames}")
         if self.max_jump_mm is not None and not self.max_jump_mm >= 0:
             raise ParameterError(f"max jump must be ≥ 0 mm, got {self.max_jump_mm}")
+        if self.space not in SPACES:
+            raise ParameterError(f"space must be one of {', '.join(SPACES)}, got {self.space!r}")
         get_method(self.method)  # fail early on an unknown method
 
 
@@ -200,6 +204,8 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
         one outcome per gap of the input.
     """
     options = options or RepairOptions()
+    if options.space == "channels":
+        return repair_channels(motion, options)
     started = time.perf_counter()
     if motion.n_frames < 2:
         raise NothingToRepair(f"a clip of {motion.n_frames} frame(s) cannot be repaired")
@@ -242,3 +248,73 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
         raise NothingToRepair(f"method {options.method!r} returned non-finite values")
     return RepairResult(motion.with_positions(positions, new_observed), outcomes,
                         time.perf_counter() - started)
+
+
+def _fill_channel_ends(column: np.ndarray, observed: np.ndarray, start: int, stop: int,
+                       ends: str) -> None:
+    """End-gap policy for one channel column (in place), like :func:`_fill_ends`."""
+    if ends == "hold":
+        column[start:stop] = column[stop] if start == 0 else column[start - 1]
+    else:
+        seen = column[observed]
+        margin = END_MARGIN * (seen.max() - seen.min())
+        np.clip(column[start:stop], seen.min() - margin, seen.max() + margin,
+                out=column[start:stop])
+
+
+def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
+    """Fill a skeleton clip (BVH, AMC) in channel space: the joint angles themselves.
+
+    Positions cannot be turned back into joint angles without inverse kinematics (twist is
+    unobservable), so a repair written back into a BVH/AMC completes the channel matrix,
+    rotation channels unwrapped along time, and re-wraps only the filled cells. Each
+    channel's runs of missing frames follow the gap policy of the joint that owns the
+    channel. The returned outcomes describe the position gaps of the input: a gap is
+    filled when every channel that moves the point was filled.
+    """
+    from . import formats
+    from .skeleton import Skeleton
+
+    started = time.perf_counter()
+    module = formats.format_module(motion.path) if motion.path is not None else None
+    if module is None or not hasattr(module, "channels"):
+        raise ParameterError("channel-space repair needs a clip read from a BVH or AMC file")
+    values, observed = module.channels(motion)
+    skeleton: Skeleton = motion.source.state.skeleton
+    owner = np.full(values.shape[1], -1)
+    for joint, columns in enumerate(skeleton.rotation_columns):
+        owner[list(columns)] = joint
+    for joint, columns in enumerate(skeleton.translation_columns):
+        owner[list(columns)] = joint
+
+    fill = np.zeros_like(observed)
+    for column in range(values.shape[1]):
+        for start, stop in missing_runs(observed[:, column]):
+            gap = Gap(int(owner[column]), motion.labels[owner[column]], start, stop,
+                      motion.n_frames)
+            if _gap_status(gap, motion, options) == FILLED:
+                fill[start:stop, column] = True
+    before = find_gaps(motion)
+    if fill.any():
+        rows = values.shape[1]
+        pad = (-rows) % 3  # methods read rows in x/y/z triples; constant rows carry nothing
+        matrix = np.vstack([values.T, np.zeros((pad, values.shape[0]))])
+        mask = np.vstack([observed.T, np.ones((pad, values.shape[0]), bool)])
+        solved = complete_matrix(matrix, mask, options.method, rate=motion.rate,
+                                 **options.solver_options)[:rows].T
+        for column in np.flatnonzero(fill.any(axis=0)):
+            for start, stop in missing_runs(observed[:, column]):
+                if fill[start, column] and (start == 0 or stop == values.shape[0]):
+                    _fill_channel_ends(solved[:, column], observed[:, column], start, stop,
+                                       options.ends)
+        values = np.where(fill, solved, values)
+        repaired = module.with_channels(motion, values, observed | fill)
+    else:
+        repaired = motion
+    outcomes = []
+    for gap in before:
+        done = repaired.observed[gap.start:gap.stop, gap.marker].all()
+        status = FILLED if done else _gap_status(gap, motion, options)
+        outcomes.append(GapOutcome(gap, status if status != FILLED or done
+                                   else "left: channels missing", options.method))
+    return RepairResult(repaired, outcomes, time.perf_counter() - started)

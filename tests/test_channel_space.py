@@ -1,0 +1,50 @@
+"""Skeleton clips repaired in channel space and written back into their own format."""
+import numpy as np
+import pytest
+
+from mocapfill import formats
+from mocapfill.gaps import simulate_channel_gaps
+from mocapfill.pipeline import RepairOptions, repair
+
+from .conftest import shared_file
+
+
+@pytest.mark.parametrize("name", ["cmu/10_01.bvh", "cmu/10_01.amc"])
+def test_simulated_channel_gaps_repair_and_patch_only_gap_lines(tmp_path, name):
+    source = shared_file(name)
+    if source.suffix == ".amc":
+        (tmp_path / "10.asf").write_bytes(shared_file("cmu/10.asf").read_bytes())
+    truth = formats.read(source)
+    gapped = simulate_channel_gaps(truth, ml=30, markers=4, seed=2)
+    gapped_path = tmp_path / f"gapped{source.suffix}"
+    formats.write(gapped, gapped_path)
+    assert b"nan" in gapped_path.read_bytes()
+
+    reread = formats.read(gapped_path)
+    assert (~reread.observed).any()
+    result = repair(reread, RepairOptions(space="channels", method="linear"))
+    out = tmp_path / f"repaired{source.suffix}"
+    formats.write(result.motion, out)
+
+    original_lines = gapped_path.read_text().splitlines()
+    new_lines = out.read_text().splitlines()
+    assert len(original_lines) == len(new_lines)
+    changed = [i for i, (a, b) in enumerate(zip(original_lines, new_lines)) if a != b]
+    assert changed and all("nan" in original_lines[i] for i in changed)
+    assert not any("nan" in line for line in new_lines)
+
+    repaired = formats.read(out)
+    missing = ~reread.observed
+    error = np.sqrt(np.mean((repaired.positions - truth.positions)[missing] ** 2))
+    spread = np.nanstd(truth.positions)
+    assert error < 0.1 * spread
+    assert all(o.status == "filled" for o in result.gaps)
+
+
+def test_channel_repair_with_the_default_method_fills_every_gap(tmp_path):
+    truth = formats.read(shared_file("cmu/10_01.bvh"))
+    gapped = simulate_channel_gaps(truth, ml=20, markers=3, seed=5)
+    result = repair(gapped, RepairOptions(space="channels"))
+    assert result.motion.observed.all()
+    np.testing.assert_array_equal(result.motion.positions[gapped.observed],
+                                  gapped.positions[gapped.observed])
