@@ -1,0 +1,396 @@
+"""Shared machinery of the delimited text formats (CSV and TRC).
+
+Both formats keep the original text in a :class:`TextSource` handle so that a writer can
+patch it: only the cells of samples that were missing and are now observed change; every
+other byte of the file (header, delimiters, quoting, line endings, the cells of untouched
+samples) is written back as it was read.
+
+Files are decoded as UTF-8 with ``surrogateescape``, so bytes that are not UTF-8 (a
+Latin-1 path in a TRC header, say) survive the round trip unchanged.
+"""
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..errors import FormatError
+from ..motion import Motion
+
+ENCODING = "utf-8"
+ERRORS = "surrogateescape"
+
+#: Cell texts (case-insensitive, after stripping blanks and quotes) that mean "missing".
+MISSING_TOKENS = frozenset({"", "nan", "-nan", "+nan", "na", "n/a"})
+
+_LINE = re.compile(r"[^\r\n]*(?:\r\n|\r|\n)|[^\r\n]+$")
+
+
+@dataclass(frozen=True, eq=False)
+class TextSource:
+    """Everything a writer needs to patch the text file a Motion was read from.
+
+    Attributes
+    ----------
+    kind
+        Layout that was read: ``"csv"``, ``"vicon"``, ``"headerless"``, ``"ktk"``, ``"trc"``.
+    lines
+        The original lines, each with its own line ending.
+    delimiter
+        Cell separator of the data rows.
+    row_lines
+        (frames,) index into ``lines`` of the row that holds each frame.
+    columns
+        (markers, 3) cell index of x, y and z of each marker within a row.
+    observed
+        (frames, markers) mask as read; the writer fills only samples False here.
+    labels
+        Marker labels as read; a Motion with other labels cannot be patched.
+    w_columns
+        (markers,) cell index of a homogeneous coordinate written as ``1`` when the sample
+        is filled and the cell is missing (Kinetics Toolkit ``NAME[3]``), or -1.
+    declared_frames
+        Frame count the header declares (TRC ``NumFrames``), None when it declares none.
+    truncated_rows_read
+        Rows read from a file holding fewer frames than it declares; None when complete.
+    notes
+        Readable remarks on what the reader tolerated (header counts that disagree with
+        the data, ignored columns, a truncated file), for a report to show.
+    """
+
+    kind: str
+    lines: tuple[str, ...]
+    delimiter: str
+    row_lines: np.ndarray
+    columns: np.ndarray
+    observed: np.ndarray
+    labels: tuple[str, ...]
+    w_columns: np.ndarray | None = None
+    declared_frames: int | None = None
+    truncated_rows_read: int | None = None
+    notes: tuple[str, ...] = ()
+
+    @property
+    def truncated(self) -> bool:
+        """True when the file holds fewer frames than its header declares."""
+        return self.truncated_rows_read is not None
+
+    def fits(self, motion: Motion) -> bool:
+        """Whether ``motion`` still has the shape and labels of the file (can be patched)."""
+        return (motion.positions.shape[:2] == self.observed.shape
+                and tuple(motion.labels) == self.labels)
+
+
+# ----------------------------------------------------------------------------- text I/O
+
+def read_lines(path: Path) -> list[str]:
+    """The lines of a text file, each keeping its line ending (``\\r\\n``, ``\\n``, ``\\r``)."""
+    text = Path(path).read_bytes().decode(ENCODING, ERRORS)
+    return _LINE.findall(text)
+
+
+def write_lines(path: Path, lines: Sequence[str]) -> None:
+    """Write lines (with their endings) back byte for byte."""
+    Path(path).write_bytes("".join(lines).encode(ENCODING, ERRORS))
+
+
+def split_ending(line: str) -> tuple[str, str]:
+    """``(body, ending)`` of a line."""
+    if line.endswith("\r\n"):
+        return line[:-2], "\r\n"
+    if line.endswith(("\n", "\r")):
+        return line[:-1], line[-1]
+    return line, ""
+
+
+def split_cells(body: str, delimiter: str) -> list[str]:
+    """Raw cells of a line body; joining them with ``delimiter`` gives the body back.
+
+    A cell in double quotes may hold the delimiter (CSV quoting, ``""`` for a quote).
+    """
+    if '"' not in body:
+        return body.split(delimiter)
+    cells, start, quoted = [], 0, False
+    for i, char in enumerate(body):
+        if char == '"':
+            quoted = not quoted
+        elif char == delimiter and not quoted:
+            cells.append(body[start:i])
+            start = i + 1
+    cells.append(body[start:])
+    return cells
+
+
+def cell_text(raw: str) -> str:
+    """The value of a raw cell: blanks around it and enclosing quotes removed.
+
+    Bytes that were not UTF-8 (kept as surrogates so a patch writes them back) are
+    decoded as Latin-1 here, so labels and units are printable strings.
+    """
+    text = raw.strip()
+    if len(text) >= 2 and text[0] == '"' and text[-1] == '"':
+        text = text[1:-1].replace('""', '"').strip()
+    if not text.isascii():
+        text = printable(text)
+    return text
+
+
+def printable(text: str) -> str:
+    """``text`` with the undecodable bytes ``read_lines`` kept as surrogates decoded as
+    Latin-1 (a lone surrogate cannot be printed or encoded)."""
+    data = text.encode(ENCODING, ERRORS)
+    try:
+        return data.decode(ENCODING)
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
+def quote(text: str, delimiter: str) -> str:
+    """``text`` as a cell, in quotes only when it holds the delimiter, a quote or a newline."""
+    if delimiter in text or '"' in text or "\n" in text or "\r" in text:
+        return '"' + text.replace('"', '""') + '"'
+    return text
+
+
+def is_blank(line: str) -> bool:
+    return not line.strip()
+
+
+def sniff_delimiter(line: str, candidates: str = ",;\t") -> str:
+    """The candidate that occurs most often in ``line`` (ties: earlier candidate wins)."""
+    counts = [line.count(c) for c in candidates]
+    return candidates[int(np.argmax(counts))] if max(counts) else candidates[0]
+
+
+# ----------------------------------------------------------------------------- numbers
+
+def parse_number(text: str) -> float:
+    """A cell value as float; NaN for a missing token; ValueError when unparsable."""
+    if text.lower() in MISSING_TOKENS:
+        return float("nan")
+    return float(text)
+
+
+def parse_markers(path: Path, lines: Sequence[str], row_lines: np.ndarray,
+                  columns: np.ndarray, delimiter: str,
+                  column_name: Callable[[int, int], str],
+                  last_cell_suspect: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and observed mask of the marker cells of the given rows.
+
+    Parameters
+    ----------
+    path
+        File name for error messages.
+    lines, row_lines, columns, delimiter
+        As in :class:`TextSource`.
+    column_name
+        ``column_name(marker, axis)`` names a column in an error message.
+    last_cell_suspect
+        The file ends inside its last row (no final line ending): the last cell of that
+        row may be cut short and is read as missing.
+
+    Returns
+    -------
+    positions, observed
+        (frames, markers, 3) with NaN at missing samples, and (frames, markers) bool.
+        A sample is missing when any of its cells is missing or absent (short row).
+    """
+    n_frames, n_markers = len(row_lines), len(columns)
+    flat = columns.reshape(-1).tolist()
+    values = np.full((n_frames, len(flat)), np.nan)
+    for f, index in enumerate(row_lines):
+        body, ending = split_ending(lines[index])
+        cells = split_cells(body, delimiter)
+        if last_cell_suspect and not ending and index == len(lines) - 1:
+            cells = cells[:-1]
+        try:        # fast path: every cell a plain number
+            values[f] = [float(cells[c]) for c in flat]
+            continue
+        except (ValueError, IndexError):
+            pass
+        n_cells = len(cells)
+        row = values[f]
+        for k, c in enumerate(flat):
+            if c >= n_cells:
+                continue
+            text = cell_text(cells[c])
+            try:
+                row[k] = parse_number(text)
+            except ValueError:
+                name = column_name(k // 3, k % 3)
+                raise FormatError(path, f"row {index + 1}, column {name}: "
+                                        f"cannot parse {text!r}") from None
+    positions = values.reshape(n_frames, n_markers, 3)
+    observed = np.isfinite(positions).all(axis=2)
+    positions[~observed] = np.nan
+    return positions, observed
+
+
+def parse_column(path: Path, lines: Sequence[str], row_lines: np.ndarray, column: int,
+                 delimiter: str, name: str) -> np.ndarray:
+    """One column (Frame, Time) of the data rows as floats, NaN where empty or absent."""
+    out = np.full(len(row_lines), np.nan)
+    for f, index in enumerate(row_lines):
+        cells = split_cells(split_ending(lines[index])[0], delimiter)
+        if column < len(cells):
+            text = cell_text(cells[column])
+            try:
+                out[f] = parse_number(text)
+            except ValueError:
+                raise FormatError(path, f"row {index + 1}, column {name}: "
+                                        f"cannot parse {text!r}") from None
+    return out
+
+
+def rate_from_times(times: np.ndarray) -> float | None:
+    """Frame rate implied by a time column, or None when it implies none.
+
+    The median step is robust to a dropped row; when every step agrees with the mean step
+    to within the rounding of printed times, the mean step over the whole span is used
+    instead (times printed to 3 decimals at 120 Hz would otherwise give 125 Hz).
+    """
+    t = times[np.isfinite(times)]
+    if t.size < 2:
+        return None
+    steps = np.diff(t)
+    median = float(np.median(steps))
+    if median <= 0:
+        return None
+    mean = float(t[-1] - t[0]) / (t.size - 1)
+    step = mean if np.all(np.abs(steps - mean) <= 0.5 * mean) else median
+    return round(1.0 / step, 6)
+
+
+def first_frame_from(frames: np.ndarray, default: int = 1) -> int:
+    """The first Frame value when it is a whole number, else ``default``."""
+    finite = frames[np.isfinite(frames)]
+    if finite.size and float(finite[0]).is_integer():
+        return int(finite[0])
+    return default
+
+
+def format_float(value: float) -> str:
+    """Shortest text that reads back as exactly ``value`` (``1.0`` written ``1``)."""
+    text = repr(float(value))
+    return text.removesuffix(".0")
+
+
+def format_time(seconds: float) -> str:
+    """A time to 9 decimals without trailing zeros (``0``, ``0.008333333``, ``0.025``)."""
+    text = f"{seconds:.9f}".rstrip("0").rstrip(".")
+    return "0" if text in ("", "-0") else text
+
+
+# ----------------------------------------------------------------------------- patching
+
+@dataclass(frozen=True)
+class NumberStyle:
+    """How a column prints its numbers: fixed decimals, or exponent notation."""
+
+    decimals: int | None          # None: shortest exact text (format_float)
+    exponent: bool = False
+
+    def format(self, value: float) -> str:
+        if self.decimals is None:
+            return format_float(value)
+        if self.exponent:
+            return f"{value:.{self.decimals}e}"
+        return f"{value:.{self.decimals}f}"
+
+
+def _decimals(text: str) -> tuple[int, bool]:
+    """Digits after the decimal point of a number cell (of its mantissa), and whether it
+    is written with an exponent."""
+    exponent = "e" in text or "E" in text
+    if exponent:
+        text = text.lower().split("e", 1)[0]
+    dot = text.find(".")
+    return (0 if dot < 0 else len(text) - dot - 1), exponent
+
+
+def column_styles(source: TextSource, cells_needed: set[int]) -> dict[int, NumberStyle]:
+    """The number style of each needed column, from the observed cells it already holds.
+
+    A column prints with the largest number of decimals its observed cells use (files
+    written with ``%g`` use fewer decimals for larger numbers; the most precise one is
+    kept), in exponent notation when any of them does. A column with no observed cell
+    takes the most precise style of the other needed columns; with none at all, the
+    shortest exact text.
+    """
+    needed = sorted(cells_needed)
+    decimals = dict.fromkeys(needed, -1)
+    exponent: set[int] = set()
+    for index in source.row_lines:
+        cells = split_cells(split_ending(source.lines[index])[0], source.delimiter)
+        n_cells = len(cells)
+        for c in needed:
+            if c >= n_cells:
+                continue
+            text = cell_text(cells[c]) if '"' in cells[c] else cells[c].strip()
+            if text.lower() in MISSING_TOKENS:
+                continue
+            places, in_exponent = _decimals(text)
+            if in_exponent:
+                exponent.add(c)
+            decimals[c] = max(decimals[c], places)
+    best = {c: NumberStyle(d, c in exponent) for c, d in decimals.items() if d >= 0}
+    fallback = (max(best.values(), key=lambda s: (s.decimals, s.exponent)) if best
+                else NumberStyle(None))
+    return {c: best.get(c, fallback) for c in cells_needed}
+
+
+def patched_lines(source: TextSource, motion: Motion,
+                  decimals: int | None = None) -> list[str]:
+    """The original lines with the cells of newly observed samples rewritten.
+
+    Only samples missing in the file and observed in ``motion`` change; the values of
+    samples the file already held are never rewritten, and a sample the Motion marks
+    missing but the file holds is left as the file has it (a patch can only fill).
+
+    Parameters
+    ----------
+    source
+        Handle of the file ``motion`` was read from (``source.fits(motion)`` must hold).
+    motion
+        The repaired clip.
+    decimals
+        Decimals for the filled cells; None matches each column's own precision.
+    """
+    filled = motion.observed & ~source.observed
+    frames, markers = np.nonzero(filled)
+    if frames.size == 0:
+        return list(source.lines)
+    needed = {int(c) for c in np.unique(source.columns[markers].reshape(-1))}
+    styles = (column_styles(source, needed) if decimals is None
+              else dict.fromkeys(needed, NumberStyle(int(decimals))))
+    lines = list(source.lines)
+    by_frame: dict[int, list[int]] = {}
+    for f, m in zip(frames.tolist(), markers.tolist()):
+        by_frame.setdefault(f, []).append(m)
+    for f, marker_list in by_frame.items():
+        index = int(source.row_lines[f])
+        body, ending = split_ending(lines[index])
+        cells = split_cells(body, source.delimiter)
+        for m in marker_list:
+            for axis in range(3):
+                c = int(source.columns[m, axis])
+                _set_cell(cells, c, styles[c].format(motion.positions[f, m, axis]))
+            if source.w_columns is not None and source.w_columns[m] >= 0:
+                w = int(source.w_columns[m])
+                if w >= len(cells) or cell_text(cells[w]).lower() in MISSING_TOKENS:
+                    _set_cell(cells, w, "1")
+        lines[index] = source.delimiter.join(cells) + ending
+    return lines
+
+
+def _set_cell(cells: list[str], index: int, text: str) -> None:
+    """Replace a cell's text, keeping its quotes; pad a short row with empty cells."""
+    if index >= len(cells):
+        cells.extend([""] * (index + 1 - len(cells)))
+    if cells[index].strip().startswith('"'):
+        text = f'"{text}"'
+    cells[index] = text

@@ -1,0 +1,411 @@
+"""Marker CSV files (``.csv``, ``.txt``): plain, Vicon Nexus, headerless and Kinetics Toolkit.
+
+The layout is detected from the file itself.
+
+Plain marker CSV
+    Optional comment lines starting with ``#`` (``# units: mm, rate: 120`` is read), then
+    a header row, then one row per frame. Optional ``Frame`` (``Frame#``, ``Frames``) and
+    ``Time`` (``Time (s)``, ``time``, ``Time (Seconds)``) columns; each marker has three
+    columns named ``NAME_X, NAME_Y, NAME_Z``, ``NAME:X ...`` or ``NAME.x ...`` (axis
+    letter in any case, columns in any order). Other columns are ignored and listed in
+    the source handle's notes. Cells are separated by ``,``, ``;`` or tab (the most
+    frequent of the three in the header row); cells may be quoted.
+Vicon Nexus export
+    The first non-blank line names a section (``Trajectories``, ``Devices``, ``Joints``,
+    ``Model Outputs``, ``Segments``). Each section has five header lines: its name, its
+    sampling rate, the names row (``Subject:LASI`` above X, blanks above Y and Z), the
+    axis row (``Frame, Sub Frame, X, Y, Z, ...``) and the units row; then its data rows up
+    to a blank line. Only the ``Trajectories`` section is read; labels keep the
+    ``Subject:`` prefix as Nexus writes it.
+Headerless numeric CSV
+    Every row is numeric, the first one too. With 3k columns they are k markers
+    ``M001, M002, ...``; with 3k+1 the first column is a frame number (whole numbers) or
+    a time in seconds, strictly increasing; with 3k+2 the first two are frame and time.
+Kinetics Toolkit export (``ktk.TimeSeries`` written with pandas)
+    A ``Time`` column, then four columns per point, ``NAME[0]`` .. ``NAME[3]``: x, y, z
+    and the homogeneous coordinate (1 for a point). The fourth is not read; when a
+    sample is filled and its fourth cell is missing it is written as ``1``.
+
+Missing data: a sample is missing when any of its three cells is empty, ``NaN`` (any
+case), ``NA``, ``N/A`` or absent (a short row).
+
+Rate, first in this order: the ``# rate:`` comment; the Vicon rate line; the ``Time``
+column (median step, or the mean step when all steps agree within rounding); the
+``rate=`` option; 120 Hz. Units: the ``# units:`` comment; the Vicon units row; the
+``units=`` option; ``"mm"`` (``"m"`` for Kinetics Toolkit files, which are in SI units).
+Options only fill in what the file does not state.
+
+Writing: a Motion read from a CSV file (its ``source`` is this module's handle, and it
+still has the file's frames and labels) is written as a patched copy of that file: only
+the cells of samples that were missing and are now observed change. A filled cell is
+printed with the largest number of decimals that column's observed cells use (the file's
+own precision; ``decimals=`` overrides), so read-back values agree with the Motion to that
+precision. Any other Motion is written as a new plain CSV:
+``# units: mm, rate: 120`` then ``Frame,Time,NAME_X,NAME_Y,NAME_Z,...``, empty cells for
+missing samples, coordinates as the shortest text that reads back exactly.
+"""
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FormatError
+from ..motion import Motion
+from ._text import (
+    TextSource,
+    cell_text,
+    first_frame_from,
+    format_float,
+    format_time,
+    is_blank,
+    parse_column,
+    parse_markers,
+    parse_number,
+    patched_lines,
+    quote,
+    rate_from_times,
+    read_lines,
+    sniff_delimiter,
+    split_cells,
+    split_ending,
+    write_lines,
+)
+
+DEFAULT_RATE = 120.0
+DEFAULT_UNITS = "mm"
+KINDS = ("csv", "vicon", "headerless", "ktk")
+
+VICON_SECTIONS = ("trajectories", "devices", "joints", "model outputs", "segments")
+
+_FRAME = re.compile(r"^(frame|frames|frame#|frame ?number|frame_number)$", re.IGNORECASE)
+_TIME = re.compile(r"^(time|time ?\((s|sec|secs|seconds)\)|time ?\[s\]|time_s)$",
+                   re.IGNORECASE)
+_AXIS = re.compile(r"^(?P<name>.+?)[_:. ](?P<axis>[xyz])$", re.IGNORECASE)
+_KTK = re.compile(r"^(?P<name>.+)\[(?P<index>[0-3])\]$")
+_COMMENT_ITEM = re.compile(r"(\w+)\s*[:=]\s*([^,;]+)")
+
+
+def read(path: Path, *, rate: float | None = None, units: str | None = None,
+         **_ignored: object) -> Motion:
+    """Read a marker CSV file of any supported layout.
+
+    Parameters
+    ----------
+    path
+        The file.
+    rate
+        Frame rate in Hz, used only when the file states none (default 120).
+    units
+        Length unit, used only when the file states none (default ``"mm"``; ``"m"`` for
+        Kinetics Toolkit files).
+    **_ignored
+        Options meant for other formats.
+
+    Returns
+    -------
+    Motion
+        With ``source`` set to a handle the writer uses to patch this file.
+
+    Raises
+    ------
+    FormatError
+        Empty file, no data rows, no marker columns, a marker without all three axes, or
+        a cell that is not a number (the message names the row and column).
+    """
+    path = Path(path)
+    lines = read_lines(path)
+    content = [i for i, line in enumerate(lines) if not is_blank(line)]
+    if not content:
+        raise FormatError(path, "empty file")
+    comments: dict[str, str] = {}
+    start = content[0]
+    while start < len(lines) and (is_blank(lines[start]) or _body(lines, start).startswith("#")):
+        if not is_blank(lines[start]):
+            comments.update(_comment_items(_body(lines, start)))
+        start += 1
+    if start >= len(lines):
+        raise FormatError(path, "no header row (only comment lines)")
+    header = _body(lines, start)
+    delimiter = sniff_delimiter(header)
+    first = cell_text(split_cells(header, delimiter)[0]).lower()
+    if first in VICON_SECTIONS:
+        return _read_vicon(path, lines, delimiter, rate, units)
+    if _all_numeric(split_cells(header, delimiter)):
+        return _read_headerless(path, lines, start, delimiter, comments, rate, units)
+    return _read_plain(path, lines, start, delimiter, comments, rate, units)
+
+
+def write(motion: Motion, path: Path, *, decimals: int | None = None,
+          **_ignored: object) -> None:
+    """Write a CSV: a patched copy of the source file when there is one, else a new file.
+
+    Parameters
+    ----------
+    motion
+        The clip.
+    path
+        Output file (``formats.write`` passes a temporary file it renames when done).
+    decimals
+        Decimals of written coordinates; None matches the source file's precision
+        (patch) or writes the shortest exact text (new file).
+    **_ignored
+        Options meant for other formats.
+    """
+    source = motion.source
+    if isinstance(source, TextSource) and source.kind in KINDS and source.fits(motion):
+        write_lines(path, patched_lines(source, motion, decimals))
+    else:
+        write_lines(path, new_file_lines(motion, decimals))
+
+
+def new_file_lines(motion: Motion, decimals: int | None = None) -> list[str]:
+    """The lines of a new plain CSV holding ``motion`` (see the module docstring)."""
+    def number(value: float) -> str:
+        return format_float(value) if decimals is None else f"{value:.{decimals}f}"
+
+    names = [_clean_label(label, j) for j, label in enumerate(motion.labels)]
+    header = ["Frame", "Time"] + [quote(f"{name}_{axis}", ",")
+                                  for name in names for axis in "XYZ"]
+    lines = [f"# units: {motion.units}, rate: {format_float(motion.rate)}\n",
+             ",".join(header) + "\n"]
+    rate = motion.rate if motion.rate > 0 else DEFAULT_RATE
+    for f in range(motion.n_frames):
+        cells = [str(motion.first_frame + f), format_time(f / rate)]
+        for m in range(motion.n_markers):
+            if motion.observed[f, m]:
+                cells.extend(number(v) for v in motion.positions[f, m])
+            else:
+                cells.extend(("", "", ""))
+        lines.append(",".join(cells) + "\n")
+    return lines
+
+
+# ----------------------------------------------------------------------------- layouts
+
+def _read_plain(path: Path, lines: list[str], start: int, delimiter: str,
+                comments: dict[str, str], rate: float | None,
+                units: str | None) -> Motion:
+    headers = [cell_text(c) for c in split_cells(_body(lines, start), delimiter)]
+    frame_col = time_col = -1
+    markers: dict[str, dict[int, int]] = {}
+    w_cols: dict[str, int] = {}
+    ignored: list[str] = []
+    ktk = False
+    for c, name in enumerate(headers):
+        if frame_col < 0 and _FRAME.match(name):
+            frame_col = c
+        elif time_col < 0 and _TIME.match(name):
+            time_col = c
+        elif (match := _KTK.match(name)) is not None:
+            ktk = True
+            index = int(match["index"])
+            if index == 3:
+                w_cols[match["name"]] = c
+            else:
+                _add_axis(path, markers, match["name"], index, c, name)
+        elif (match := _AXIS.match(name)) is not None:
+            _add_axis(path, markers, match["name"], "xyz".index(match["axis"].lower()), c,
+                      name)
+        elif name:
+            ignored.append(name)
+    if not markers:
+        raise FormatError(path, "no marker columns (expected NAME_X, NAME_Y, NAME_Z, "
+                                "NAME:X ... or NAME.x ... in the header row)")
+    for name, axes in markers.items():
+        if len(axes) < 3:
+            have = ", ".join("XYZ"[a] for a in sorted(axes))
+            lack = ", ".join("XYZ"[a] for a in range(3) if a not in axes)
+            raise FormatError(path, f"marker {name!r} has columns {have} but no {lack}")
+    labels = tuple(markers)
+    columns = np.array([[markers[n][a] for a in range(3)] for n in labels], dtype=int)
+    row_lines = _data_rows(lines, start + 1)
+    if row_lines.size == 0:
+        raise FormatError(path, "no data rows after the header")
+
+    def column_name(marker: int, axis: int) -> str:
+        return headers[columns[marker, axis]]
+
+    positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
+                                        column_name)
+    frames = (parse_column(path, lines, row_lines, frame_col, delimiter, headers[frame_col])
+              if frame_col >= 0 else np.array([]))
+    times = (parse_column(path, lines, row_lines, time_col, delimiter, headers[time_col])
+             if time_col >= 0 else np.array([]))
+    notes = (f"ignored columns: {', '.join(ignored)}",) if ignored else ()
+    w_columns = (np.array([w_cols.get(n, -1) for n in labels], dtype=int) if ktk else None)
+    source = TextSource("ktk" if ktk else "csv", tuple(lines), delimiter, row_lines,
+                        columns, observed, labels, w_columns=w_columns, notes=notes)
+    return Motion(positions, observed, labels,
+                  _rate(comments, rate_from_times(times), rate),
+                  comments.get("units") or units or ("m" if ktk else DEFAULT_UNITS),
+                  source=source, path=path, first_frame=first_frame_from(frames))
+
+
+def _read_vicon(path: Path, lines: list[str], delimiter: str, rate: float | None,
+                units: str | None) -> Motion:
+    sections: dict[str, tuple[int, str]] = {}
+    after_blank = True          # a section starts the file or follows an empty line
+    for i, line in enumerate(lines):
+        cells = [cell_text(c) for c in split_cells(split_ending(line)[0], delimiter)]
+        if after_blank and cells[0].lower() in VICON_SECTIONS and not any(cells[1:]):
+            sections.setdefault(cells[0].lower(), (i, cells[0]))
+        after_blank = not any(cells)
+    if "trajectories" not in sections:
+        found = ", ".join(name for _, name in sections.values())
+        raise FormatError(path, f"Vicon Nexus export without a Trajectories section "
+                                f"(sections: {found}); only trajectories are read")
+    top = sections["trajectories"][0]
+    if top + 4 >= len(lines):
+        raise FormatError(path, "Vicon Trajectories section ends inside its 5 header lines")
+    head = [[cell_text(c) for c in split_cells(_body(lines, top + k), delimiter)]
+            for k in range(5)]
+    names_row, axes_row, units_row = head[2], head[3], head[4]
+    blocks: dict[str, dict[int, int]] = {}
+    current = ""
+    for c, axis in enumerate(axes_row):
+        if c < len(names_row) and names_row[c]:
+            current = names_row[c]
+        if c >= 2 and current and axis.upper() in ("X", "Y", "Z"):
+            _add_axis(path, blocks, current, "XYZ".index(axis.upper()), c, f"{current} {axis}")
+    complete = {name: axes for name, axes in blocks.items() if len(axes) == 3}
+    if not complete:
+        raise FormatError(path, "Vicon Trajectories section has no X, Y, Z marker columns")
+    labels = tuple(complete)
+    columns = np.array([[complete[n][a] for a in range(3)] for n in labels], dtype=int)
+    row_lines = _data_rows(lines, top + 5, section_delimiter=delimiter)
+    if row_lines.size == 0:
+        raise FormatError(path, "Vicon Trajectories section has no data rows")
+
+    def column_name(marker: int, axis: int) -> str:
+        return f"{labels[marker]}_{'XYZ'[axis]}"
+
+    positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
+                                        column_name)
+    frames = parse_column(path, lines, row_lines, 0, delimiter, "Frame")
+    unit_set = {units_row[c] for c in columns.reshape(-1)
+                if c < len(units_row) and units_row[c]}
+    if len(unit_set) > 1:
+        raise FormatError(path, f"Vicon trajectories in mixed units: {sorted(unit_set)}")
+    try:
+        file_rate = float(head[1][0])
+    except (ValueError, IndexError):
+        file_rate = None
+    others = [name for key, (_, name) in sections.items() if key != "trajectories"]
+    notes = (f"sections not read: {', '.join(others)}",) if others else ()
+    source = TextSource("vicon", tuple(lines), delimiter, row_lines, columns, observed,
+                        labels, notes=notes)
+    return Motion(positions, observed, labels,
+                  file_rate if file_rate and file_rate > 0 else (rate or DEFAULT_RATE),
+                  unit_set.pop() if unit_set else (units or DEFAULT_UNITS),
+                  source=source, path=path, first_frame=first_frame_from(frames))
+
+
+def _read_headerless(path: Path, lines: list[str], start: int, delimiter: str,
+                     comments: dict[str, str], rate: float | None,
+                     units: str | None) -> Motion:
+    row_lines = _data_rows(lines, start)
+    n_cols = len(split_cells(_body(lines, start), delimiter))
+    lead = n_cols % 3
+    n_markers = n_cols // 3
+    if n_markers == 0:
+        raise FormatError(path, f"headerless CSV with {n_cols} columns holds no marker")
+    labels = tuple(f"M{j + 1:03d}" for j in range(n_markers))
+    columns = lead + np.arange(3 * n_markers, dtype=int).reshape(n_markers, 3)
+
+    def column_name(marker: int, axis: int) -> str:
+        return f"{columns[marker, axis] + 1} ({labels[marker]}_{'XYZ'[axis]})"
+
+    positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
+                                        column_name)
+    leading = [parse_column(path, lines, row_lines, c, delimiter, str(c + 1))
+               for c in range(lead)]
+    for values in leading:
+        if not (np.all(np.isfinite(values)) and np.all(np.diff(values) > 0)):
+            raise FormatError(path, f"headerless CSV has {n_cols} columns, not a multiple "
+                                    f"of 3, and its first {lead} column(s) are not an "
+                                    "increasing frame/time counter")
+    frames = times = np.array([])
+    if lead == 2:
+        frames, times = leading
+    elif lead == 1:
+        whole = np.all(np.mod(leading[0], 1) == 0)
+        frames, times = (leading[0], times) if whole else (frames, leading[0])
+    source = TextSource("headerless", tuple(lines), delimiter, row_lines, columns,
+                        observed, labels)
+    return Motion(positions, observed, labels,
+                  _rate(comments, rate_from_times(times), rate),
+                  comments.get("units") or units or DEFAULT_UNITS,
+                  source=source, path=path, first_frame=first_frame_from(frames))
+
+
+# ----------------------------------------------------------------------------- helpers
+
+def _body(lines: Sequence[str], index: int) -> str:
+    body = split_ending(lines[index])[0]
+    return body.lstrip("\ufeff") if index == 0 else body
+
+
+def _comment_items(body: str) -> dict[str, str]:
+    return {k.lower(): v.strip() for k, v in _COMMENT_ITEM.findall(body.lstrip("#"))}
+
+
+def _rate(comments: dict[str, str], from_times: float | None,
+          option: float | None) -> float:
+    try:
+        stated = float(comments.get("rate", ""))
+    except ValueError:
+        stated = None
+    for candidate in (stated, from_times, option):
+        if candidate is not None and candidate > 0:
+            return float(candidate)
+    return DEFAULT_RATE
+
+
+def _all_numeric(cells: list[str]) -> bool:
+    """Whether a first row is data: every cell a number or a missing token, and not all
+    of them empty (an all-``NaN`` first frame is data; an empty row is not)."""
+    texts = [cell_text(raw) for raw in cells]
+    try:
+        for text in texts:
+            parse_number(text)
+    except ValueError:
+        return False
+    return any(texts)
+
+
+def _add_axis(path: Path, markers: dict[str, dict[int, int]], name: str, axis: int,
+              column: int, header: str) -> None:
+    axes = markers.setdefault(name, {})
+    if axis in axes:
+        raise FormatError(path, f"column {header!r} appears twice")
+    axes[axis] = column
+
+
+def _data_rows(lines: Sequence[str], start: int, section_delimiter: str | None = None
+               ) -> np.ndarray:
+    """Indices of the data rows from ``start``: blank and ``#`` lines are skipped.
+
+    With ``section_delimiter`` (a sectioned Vicon file) a line with no text, or only
+    empty cells, ends the section.
+    """
+    rows = []
+    for i in range(start, len(lines)):
+        body = split_ending(lines[i])[0]
+        if section_delimiter is not None and not body.replace(section_delimiter, "").strip():
+            if rows:
+                break
+            continue
+        if not body.strip():
+            continue
+        if body.lstrip().startswith("#"):
+            continue
+        rows.append(i)
+    return np.array(rows, dtype=int)
+
+
+def _clean_label(label: str, index: int) -> str:
+    label = " ".join(str(label).split("\n")).replace("\r", " ").strip()
+    return label or f"M{index + 1:03d}"

@@ -1,0 +1,302 @@
+"""TRC marker files (Motion Analysis; OpenSim).
+
+Layout::
+
+    PathFileType 4 (X/Y/Z) walk.trc
+    DataRate CameraRate NumFrames NumMarkers Units OrigDataRate OrigDataStartFrame OrigNumFrames
+    60       60         900       41         mm    60           1                  900
+    Frame#   Time       R.ASIS    (blank)    (blank) L.ASIS     ...
+                        X1        Y1         Z1      X2         ...
+    (blank line)
+    1        0.000      ...
+
+Reading is tolerant, because real files disagree with their own headers:
+
+- cells are tab- or comma-separated (whichever the ``DataRate`` line uses); blanks
+  around cells and around marker names are ignored;
+- the ``X1 Y1 Z1`` line and the blank line are optional; key and value lines are matched
+  on their non-empty cells when padding makes their cell counts differ;
+- the marker names line and the rows are trusted over ``NumMarkers`` and ``NumFrames``:
+  marker k takes cells 3k+2 .. 3k+4 of each row (as BTK and OpenSim read them), cells
+  beyond the named markers are ignored, and a file with fewer rows than ``NumFrames``
+  (a truncated copy) gives the rows it holds. Each disagreement is described in the
+  source handle's ``notes``; ``declared_frames`` and ``truncated_rows_read`` let a
+  caller report "93 of 652 declared frames read";
+- a sample is missing when any of its cells is empty, ``NaN`` (any case) or absent
+  (short row). When the file ends inside its last row (no final line ending and fewer
+  cells than the header implies) the last cell of that row may be cut and is read as
+  missing.
+
+Rate: ``DataRate``, else the ``Time`` column, else the ``rate=`` option, else 120 Hz.
+Units: ``Units``, else the ``units=`` option, else mm. ``first_frame``: the first
+``Frame#`` value, else ``OrigDataStartFrame``, else 1.
+
+Writing: a Motion read from a TRC file (and still holding its frames and labels) is
+written as a patched copy: only the cells of samples that were missing and are now
+observed change, printed with the largest number of decimals that column's observed
+cells use (``decimals=`` overrides). Any other Motion is written in exactly the layout
+OpenSim's ``TRCFileAdapter`` writes: tab-delimited, ``PathFileType\\t4\\t(X/Y/Z)\\t<name>``,
+the 8 header keys and their values, each marker name followed by three tabs, ``X1 Y1 Z1``
+... numbered from 1, a blank line, then rows whose cells are each followed by a tab;
+``Frame#`` counts from ``first_frame`` (= ``OrigDataStartFrame``), time from 0, missing
+samples are empty cells, coordinates the shortest text that reads back exactly.
+
+Marker names in a new file have the characters OpenSim rejects in component names
+(whitespace, ``\\``, ``/``, ``*``, ``+``) replaced by ``_``: a TRC is written for OpenSim,
+and a name it rejects makes the whole file unusable there, whereas the renamed marker
+is still recognisable. A patched file keeps its names as they are.
+"""
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FormatError
+from ..motion import Motion
+from ._text import (
+    TextSource,
+    cell_text,
+    first_frame_from,
+    format_float,
+    format_time,
+    parse_column,
+    parse_markers,
+    patched_lines,
+    rate_from_times,
+    read_lines,
+    split_cells,
+    split_ending,
+    write_lines,
+)
+
+DEFAULT_RATE = 120.0
+DEFAULT_UNITS = "mm"
+HEADER_KEYS = ("DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units",
+               "OrigDataRate", "OrigDataStartFrame", "OrigNumFrames")
+
+_AXIS_LABEL = re.compile(r"^[XYZ]\d+$", re.IGNORECASE)
+_OPENSIM_REJECTS = re.compile(r"[\s\\/*+]")
+# formats.write hands us a tempfile.mkstemp name ".<target>.<8 random chars>.tmp".
+_TEMP_NAME = re.compile(r"^\.(?P<name>.+)\.[A-Za-z0-9_]{8}\.tmp$")
+
+
+def read(path: Path, *, rate: float | None = None, units: str | None = None,
+         **_ignored: object) -> Motion:
+    """Read a TRC file.
+
+    Parameters
+    ----------
+    path
+        The file.
+    rate
+        Frame rate in Hz, used only when the file states none (default 120).
+    units
+        Length unit, used only when the header has no ``Units`` (default ``"mm"``).
+    **_ignored
+        Options meant for other formats.
+
+    Returns
+    -------
+    Motion
+        With ``source`` set to a :class:`~mocapfill.formats._text.TextSource` that the
+        writer uses to patch this file and that carries the reader's ``notes``.
+
+    Raises
+    ------
+    FormatError
+        Not a TRC file, a header line missing, no marker names, no data rows, or a cell
+        that is not a number (the message names the row and column).
+    """
+    path = Path(path)
+    lines = read_lines(path)
+    if not lines or not _body(lines, 0).startswith("PathFileType"):
+        raise FormatError(path, "not a TRC file (first line does not start with "
+                                "PathFileType)")
+    keys_at = _find(lines, 1, 6, lambda body: body.strip().startswith("DataRate"))
+    if keys_at < 0 or keys_at + 1 >= len(lines):
+        raise FormatError(path, "TRC header has no DataRate ... line with its values")
+    keys_body = _body(lines, keys_at)
+    delimiter = "\t" if "\t" in keys_body else "," if "," in keys_body else ""
+    if not delimiter:
+        raise FormatError(path, "TRC header is neither tab- nor comma-delimited")
+    header = _header(keys_body, _body(lines, keys_at + 1), delimiter)
+    names_at = _find(lines, keys_at + 2, keys_at + 5,
+                     lambda body: body.strip().startswith("Frame#"))
+    if names_at < 0:
+        raise FormatError(path, "TRC header has no Frame# Time <marker names> line")
+    labels = tuple(name for name in (cell_text(c) for c in
+                                     split_cells(_body(lines, names_at), delimiter)[2:])
+                   if name)
+    if not labels:
+        raise FormatError(path, "TRC file names no markers")
+    start = names_at + 1
+    if start < len(lines) and _is_axis_line(_body(lines, start), delimiter):
+        start += 1
+    row_lines = np.array([i for i in range(start, len(lines))
+                          if _body(lines, i).replace(delimiter, "").strip()], dtype=int)
+    if row_lines.size == 0:
+        raise FormatError(path, "TRC file has no data rows")
+
+    n_markers = len(labels)
+    columns = 2 + np.arange(3 * n_markers, dtype=int).reshape(n_markers, 3)
+    last_body, last_ending = split_ending(lines[row_lines[-1]])
+    last_short = len(split_cells(last_body, delimiter)) < 2 + 3 * n_markers
+    cut = last_short and not last_ending and row_lines[-1] == len(lines) - 1
+
+    def column_name(marker: int, axis: int) -> str:
+        return f"{'XYZ'[axis]}{marker + 1} ({labels[marker]})"
+
+    positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
+                                        column_name, last_cell_suspect=cut)
+    frames = parse_column(path, lines, row_lines, 0, delimiter, "Frame#")
+    times = parse_column(path, lines, row_lines, 1, delimiter, "Time")
+
+    declared_frames = _int(header.get("NumFrames"))
+    notes = _notes(lines, row_lines, delimiter, header, n_markers, declared_frames,
+                   last_short)
+    truncated = (len(row_lines) if declared_frames is not None
+                 and len(row_lines) < declared_frames else None)
+    source = TextSource("trc", tuple(lines), delimiter, row_lines, columns, observed,
+                        labels, declared_frames=declared_frames,
+                        truncated_rows_read=truncated, notes=tuple(notes))
+    data_rate = _float(header.get("DataRate"))
+    file_rate = data_rate if data_rate and data_rate > 0 else rate_from_times(times)
+    start_frame = _int(header.get("OrigDataStartFrame"))
+    return Motion(positions, observed, labels, file_rate or rate or DEFAULT_RATE,
+                  header.get("Units") or units or DEFAULT_UNITS, source=source, path=path,
+                  first_frame=first_frame_from(frames, 1 if start_frame is None
+                                               else start_frame))
+
+
+def write(motion: Motion, path: Path, *, decimals: int | None = None,
+          **_ignored: object) -> None:
+    """Write a TRC: a patched copy of the source file when there is one, else a new file.
+
+    Parameters
+    ----------
+    motion
+        The clip.
+    path
+        Output file (``formats.write`` passes a temporary file it renames when done;
+        the name in the ``PathFileType`` line is the final one).
+    decimals
+        Decimals of written coordinates; None matches the source file's precision
+        (patch) or writes the shortest exact text (new file).
+    **_ignored
+        Options meant for other formats.
+    """
+    source = motion.source
+    if isinstance(source, TextSource) and source.kind == "trc" and source.fits(motion):
+        write_lines(path, patched_lines(source, motion, decimals))
+    else:
+        write_lines(path, new_file_lines(motion, _target_name(Path(path)), decimals))
+
+
+def new_file_lines(motion: Motion, name: str, decimals: int | None = None) -> list[str]:
+    """The lines of a new TRC file in OpenSim's layout (see the module docstring)."""
+    def number(value: float) -> str:
+        return format_float(value) if decimals is None else f"{value:.{decimals}f}"
+
+    rate = motion.rate if motion.rate > 0 else DEFAULT_RATE
+    n_frames, n_markers = motion.n_frames, motion.n_markers
+    values = (format_float(rate), format_float(rate), str(n_frames), str(n_markers),
+              motion.units, format_float(rate), str(motion.first_frame), str(n_frames))
+    lines = [f"PathFileType\t4\t(X/Y/Z)\t{name}\n",
+             "\t".join(HEADER_KEYS) + "\n",
+             "\t".join(values) + "\n",
+             "Frame#\tTime\t" + "".join(f"{opensim_name(label, j)}\t\t\t"
+                                        for j, label in enumerate(motion.labels)) + "\n",
+             "\t\t" + "".join(f"X{k}\tY{k}\tZ{k}\t" for k in range(1, n_markers + 1)) + "\n",
+             "\n"]
+    for f in range(n_frames):
+        cells = [str(motion.first_frame + f), format_time(f / rate)]
+        for m in range(n_markers):
+            if motion.observed[f, m]:
+                cells.extend(number(v) for v in motion.positions[f, m])
+            else:
+                cells.extend(("", "", ""))
+        lines.append("".join(cell + "\t" for cell in cells) + "\n")
+    return lines
+
+
+def opensim_name(label: str, index: int) -> str:
+    """``label`` with the characters OpenSim rejects replaced by ``_`` (``M001`` if empty)."""
+    name = _OPENSIM_REJECTS.sub("_", str(label).strip())
+    return name or f"M{index + 1:03d}"
+
+
+# ----------------------------------------------------------------------------- helpers
+
+def _body(lines: Sequence[str], index: int) -> str:
+    body = split_ending(lines[index])[0]
+    return body.lstrip("\ufeff") if index == 0 else body
+
+
+def _find(lines: Sequence[str], start: int, stop: int, test) -> int:
+    for i in range(start, min(stop, len(lines))):
+        if test(_body(lines, i)):
+            return i
+    return -1
+
+
+def _header(keys_body: str, values_body: str, delimiter: str) -> dict[str, str]:
+    """Header keys and values; padded value lines are matched on their non-empty cells."""
+    keys = [cell_text(c) for c in split_cells(keys_body, delimiter)]
+    values = [cell_text(c) for c in split_cells(values_body, delimiter)]
+    named = [k for k in keys if k]
+    filled = [v for v in values if v]
+    if len(named) == len(filled) and len(keys) != len(values):
+        return dict(zip(named, filled))
+    return {k: v for k, v in zip(keys, values) if k}
+
+
+def _is_axis_line(body: str, delimiter: str) -> bool:
+    cells = [cell_text(c) for c in split_cells(body, delimiter)]
+    filled = [c for c in cells if c]
+    return bool(filled) and all(_AXIS_LABEL.match(c) for c in filled)
+
+
+def _notes(lines: Sequence[str], row_lines: np.ndarray, delimiter: str,
+           header: dict[str, str], n_markers: int, declared_frames: int | None,
+           last_short: bool) -> list[str]:
+    notes = []
+    declared_markers = _int(header.get("NumMarkers"))
+    if declared_markers is not None and declared_markers != n_markers:
+        notes.append(f"header declares {declared_markers} markers, the names line has "
+                     f"{n_markers}; {n_markers} read")
+    n_rows = len(row_lines)
+    if declared_frames is not None and n_rows < declared_frames:
+        notes.append(f"truncated: {n_rows} of {declared_frames} declared frames read")
+    elif declared_frames is not None and n_rows > declared_frames:
+        notes.append(f"header declares {declared_frames} frames; {n_rows} rows read")
+    width = 2 + 3 * n_markers
+    overlong = sum(1 for i in row_lines
+                   if any(c.strip() for c in
+                          split_cells(split_ending(lines[i])[0], delimiter)[width:]))
+    if overlong:
+        notes.append(f"{overlong} rows hold values beyond the {n_markers} named markers' "
+                     "columns; ignored")
+    if last_short:
+        notes.append("the last row is shorter than the header implies; its absent cells "
+                     "read as missing")
+    return notes
+
+
+def _target_name(path: Path) -> str:
+    match = _TEMP_NAME.match(path.name)
+    return match["name"] if match else path.name
+
+
+def _int(text: str | None) -> int | None:
+    value = _float(text)
+    return int(value) if value is not None and value.is_integer() else None
+
+
+def _float(text: str | None) -> float | None:
+    try:
+        return float(text) if text else None
+    except ValueError:
+        return None

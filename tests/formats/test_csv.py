@@ -1,0 +1,501 @@
+"""Marker CSV: plain, Vicon Nexus, headerless and Kinetics Toolkit layouts; patch writer."""
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mocapfill import formats
+from mocapfill.errors import FormatError
+from mocapfill.formats import csv as csvfmt
+from mocapfill.formats._text import read_lines, split_cells, split_ending
+from mocapfill.motion import Motion
+from tests.conftest import shared_file, shared_files
+
+
+def write_text(tmp_path: Path, text: str, name: str = "clip.csv") -> Path:
+    path = tmp_path / name
+    path.write_bytes(text.encode())
+    return path
+
+
+def fill_by_interp(motion: Motion) -> Motion:
+    """Fill every gap of markers not missing for the whole clip by linear interpolation."""
+    positions, observed = motion.positions.copy(), motion.observed.copy()
+    t = np.arange(motion.n_frames)
+    for j in range(motion.n_markers):
+        seen = observed[:, j]
+        if seen.any() and not seen.all():
+            for axis in range(3):
+                positions[~seen, j, axis] = np.interp(t[~seen], t[seen], positions[seen, j, axis])
+            observed[:, j] = True
+    return motion.with_positions(positions, observed)
+
+
+def printed_resolution(text: str) -> float:
+    """Half the last printed digit of a number cell: the rounding a reader may see."""
+    text = text.strip().strip('"').lower()
+    mantissa, _, exponent = text.partition("e")
+    decimals = len(mantissa) - mantissa.find(".") - 1 if "." in mantissa else 0
+    return 0.5 * 10.0 ** (int(exponent or 0) - decimals)
+
+
+def assert_patch_invariant(original: Motion, repaired: Motion, out: Path) -> None:
+    """Lines without a filled cell are identical; in the others only filled cells differ;
+    reading the output back gives the filled values to the precision they were printed."""
+    source = original.source
+    filled = repaired.observed & ~original.observed
+    expected: dict[int, set[int]] = {}
+    for f, m in zip(*np.nonzero(filled)):
+        cells = set(source.columns[m].tolist())
+        if source.w_columns is not None and source.w_columns[m] >= 0:
+            cells.add(int(source.w_columns[m]))
+        expected.setdefault(int(source.row_lines[f]), set()).update(cells)
+    old_lines, new_lines = list(source.lines), read_lines(out)
+    assert len(new_lines) == len(old_lines)
+    for i, (old, new) in enumerate(zip(old_lines, new_lines)):
+        if i not in expected:
+            assert new == old, f"line {i + 1} changed"
+            continue
+        old_body, old_end = split_ending(old)
+        new_body, new_end = split_ending(new)
+        assert new_end == old_end
+        old_cells = split_cells(old_body, source.delimiter)
+        new_cells = split_cells(new_body, source.delimiter)
+        old_cells += [""] * (len(new_cells) - len(old_cells))
+        assert len(new_cells) == len(old_cells)
+        changed = {c for c, (a, b) in enumerate(zip(old_cells, new_cells)) if a != b}
+        assert changed <= expected[i], f"line {i + 1}: cells {changed - expected[i]} changed"
+    back = formats.read(out)
+    np.testing.assert_array_equal(back.observed, repaired.observed)
+    frames, markers = np.nonzero(filled)
+    rows: dict[int, list[str]] = {}
+    for f, m in zip(frames, markers):
+        index = int(source.row_lines[f])
+        if index not in rows:
+            rows[index] = split_cells(split_ending(new_lines[index])[0], source.delimiter)
+        row = rows[index]
+        for axis in range(3):
+            text = row[source.columns[m, axis]]
+            value = repaired.positions[f, m, axis]
+            error = abs(back.positions[f, m, axis] - value)
+            assert error <= printed_resolution(text) + 8 * np.spacing(abs(value)), text
+
+
+def patch_round_trip(path: Path, tmp_path: Path) -> tuple[Motion, Motion, Path]:
+    original = formats.read(path)
+    repaired = fill_by_interp(original)
+    out = tmp_path / f"repaired{path.suffix}"
+    formats.write(repaired, out)
+    assert_patch_invariant(original, repaired, out)
+    return original, repaired, out
+
+
+# ----------------------------------------------------------------------------- plain CSV
+
+PLAIN = ("Frame,Time,LASI_X,LASI_Y,LASI_Z,RASI_X,RASI_Y,RASI_Z\n"
+         "1,0.00,1.5,2.5,3.5,10.25,20.25,30.25\n"
+         "2,0.01,1.6,2.6,3.6,,,\n"
+         "3,0.02,1.7,2.7,3.7,10.75,20.75,30.75\n")
+
+
+def test_reads_name_underscore_axis_columns(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, PLAIN))
+    assert motion.labels == ("LASI", "RASI")
+    np.testing.assert_array_equal(motion.positions[0, 1], [10.25, 20.25, 30.25])
+
+
+@pytest.mark.parametrize("header", ["A:X,A:Y,A:Z", "A.x,A.y,A.z", "A_x,A_Y,A_z", "A X,A Y,A Z"])
+def test_reads_other_axis_separators(tmp_path, header):
+    motion = csvfmt.read(write_text(tmp_path, f"{header}\n1,2,3\n"))
+    assert motion.labels == ("A",)
+    np.testing.assert_array_equal(motion.positions[0, 0], [1, 2, 3])
+
+
+def test_axis_columns_may_come_in_any_order(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, "A_Z,A_X,A_Y\n3,1,2\n"))
+    np.testing.assert_array_equal(motion.positions[0, 0], [1, 2, 3])
+
+
+def test_time_column_gives_rate_and_frame_column_first_frame(tmp_path):
+    text = "Frame,Time (s),A_X,A_Y,A_Z\n11,0.000,1,2,3\n12,0.008,1,2,3\n13,0.017,1,2,3\n" \
+           "14,0.025,1,2,3\n"
+    motion = csvfmt.read(write_text(tmp_path, text))
+    assert motion.rate == pytest.approx(120.0)      # not 125 from the rounded 0.008 step
+    assert motion.first_frame == 11
+
+
+def test_without_time_column_rate_option_is_used(tmp_path):
+    path = write_text(tmp_path, "A_X,A_Y,A_Z\n1,2,3\n1,2,3\n")
+    assert csvfmt.read(path, rate=250).rate == 250
+    assert csvfmt.read(path).rate == 120
+    assert csvfmt.read(path).first_frame == 1
+
+
+def test_time_column_wins_over_rate_option(tmp_path):
+    path = write_text(tmp_path, "time,A_X,A_Y,A_Z\n0,1,2,3\n0.01,1,2,3\n")
+    assert csvfmt.read(path, rate=250).rate == pytest.approx(100)
+
+
+def test_units_option_and_default(tmp_path):
+    path = write_text(tmp_path, "A_X,A_Y,A_Z\n1,2,3\n")
+    assert csvfmt.read(path).units == "mm"
+    assert csvfmt.read(path, units="m").units == "m"
+
+
+def test_comment_line_states_units_and_rate(tmp_path):
+    path = write_text(tmp_path, "# units: m, rate: 200\nA_X,A_Y,A_Z\n1,2,3\n1,2,3\n")
+    motion = csvfmt.read(path, units="mm", rate=50)
+    assert (motion.units, motion.rate) == ("m", 200)
+
+
+@pytest.mark.parametrize("token", ["", "NaN", "nan", "NA", " nan "])
+def test_missing_tokens_make_the_sample_missing(tmp_path, token):
+    path = write_text(tmp_path, f"A_X,A_Y,A_Z,B_X,B_Y,B_Z\n1,2,3,{token},{token},{token}\n")
+    motion = csvfmt.read(path)
+    assert motion.observed.tolist() == [[True, False]]
+    assert np.isnan(motion.positions[0, 1]).all()
+
+
+def test_one_missing_cell_makes_the_whole_sample_missing(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, "A_X,A_Y,A_Z\n1,,3\n"))
+    assert not motion.observed[0, 0]
+
+
+def test_short_row_reads_absent_cells_as_missing(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, "A_X,A_Y,A_Z,B_X,B_Y,B_Z\n1,2,3\n"))
+    assert motion.observed.tolist() == [[True, False]]
+
+
+@pytest.mark.parametrize("delimiter", [";", "\t"])
+def test_semicolon_and_tab_delimiters_are_sniffed(tmp_path, delimiter):
+    text = PLAIN.replace(",", delimiter)
+    motion = csvfmt.read(write_text(tmp_path, text))
+    assert motion.labels == ("LASI", "RASI")
+    assert motion.observed.tolist() == [[True, True], [True, False], [True, True]]
+
+
+def test_quoted_header_and_cells_are_read(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, '"A,1_X","A,1_Y","A,1_Z"\n"1","2","3"\n'))
+    assert motion.labels == ("A,1",)
+    np.testing.assert_array_equal(motion.positions[0, 0], [1, 2, 3])
+
+
+def test_unparsable_cell_error_names_file_row_and_column(tmp_path):
+    path = write_text(tmp_path, "LASI_X,LASI_Y,LASI_Z\n1,2,3\n1,abc,3\n")
+    with pytest.raises(FormatError) as info:
+        csvfmt.read(path)
+    assert str(info.value) == f"{path}: row 3, column LASI_Y: cannot parse 'abc'"
+
+
+def test_header_only_file_is_a_format_error(tmp_path):
+    with pytest.raises(FormatError, match="no data rows"):
+        csvfmt.read(write_text(tmp_path, "A_X,A_Y,A_Z\n"))
+
+
+def test_file_without_marker_columns_is_a_format_error(tmp_path):
+    with pytest.raises(FormatError, match="no marker columns"):
+        csvfmt.read(write_text(tmp_path, "Frame,Time,Force\n1,0,3\n"))
+
+
+def test_empty_file_is_a_format_error(tmp_path):
+    with pytest.raises(FormatError, match="empty file"):
+        csvfmt.read(write_text(tmp_path, "\n\n"))
+
+
+def test_marker_without_all_three_axes_is_a_format_error(tmp_path):
+    with pytest.raises(FormatError, match="'A' has columns X, Y but no Z"):
+        csvfmt.read(write_text(tmp_path, "A_X,A_Y\n1,2\n"))
+
+
+def test_other_columns_are_ignored_and_noted(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, "Frame,Sub Frame,A_X,A_Y,A_Z\n1,0,1,2,3\n"))
+    assert motion.labels == ("A",)
+    assert motion.source.notes == ("ignored columns: Sub Frame",)
+
+
+# ----------------------------------------------------------------------------- writers
+
+def test_patch_changes_only_filled_cells(tmp_path):
+    original = csvfmt.read(write_text(tmp_path, PLAIN.replace("\n", "\r\n")))
+    repaired = fill_by_interp(original)
+    out = tmp_path / "out.csv"
+    csvfmt.write(repaired, out)
+    lines = out.read_bytes().decode().split("\r\n")
+    assert lines[:2] + lines[3:] == PLAIN.split("\n")[:2] + PLAIN.split("\n")[3:]
+    assert lines[2] == "2,0.01,1.6,2.6,3.6,10.50,20.50,30.50"   # the column's 2 decimals
+    assert_patch_invariant(original, repaired, out)
+
+
+def test_patch_leaves_still_missing_samples_with_the_files_missing_token(tmp_path):
+    text = "A_X,A_Y,A_Z,B_X,B_Y,B_Z\n1,2,3,NaN,NaN,NaN\nNaN,NaN,NaN,NaN,NaN,NaN\n1,2,3,4,5,6\n"
+    original = csvfmt.read(write_text(tmp_path, text))
+    positions, observed = original.positions.copy(), original.observed.copy()
+    positions[1, 0], observed[1, 0] = [1, 2, 3], True          # fill A only
+    out = tmp_path / "out.csv"
+    csvfmt.write(original.with_positions(positions, observed), out)
+    assert out.read_text().splitlines()[2] == "1,2,3,NaN,NaN,NaN"
+
+
+def test_patch_keeps_quoted_missing_cells_quoted(tmp_path):
+    original = csvfmt.read(write_text(tmp_path, 'A_X,A_Y,A_Z\n"1.0","2.0","3.0"\n"","",""\n'
+                                                '"1.0","2.0","3.0"\n'))
+    out = tmp_path / "out.csv"
+    csvfmt.write(fill_by_interp(original), out)
+    assert out.read_text().splitlines()[2] == '"1.0","2.0","3.0"'
+
+
+def test_patch_never_rewrites_samples_the_file_holds(tmp_path):
+    original = csvfmt.read(write_text(tmp_path, PLAIN))
+    moved = original.with_positions(original.positions + 1.0, original.observed)
+    out = tmp_path / "out.csv"
+    csvfmt.write(moved, out)
+    assert out.read_text() == PLAIN
+
+
+def test_patch_of_exponent_columns_writes_exponent_notation(tmp_path):
+    original = csvfmt.read(write_text(tmp_path, "A_X,A_Y,A_Z\n1.50e+02,2.0e+00,3.0e-01\n"
+                                                ",,\n2.50e+02,4.0e+00,5.0e-01\n"))
+    out = tmp_path / "out.csv"
+    csvfmt.write(fill_by_interp(original), out)
+    assert out.read_text().splitlines()[2] == "2.00e+02,3.0e+00,4.0e-01"
+
+
+def test_patch_keeps_a_byte_order_mark(tmp_path):
+    path = tmp_path / "bom.csv"
+    path.write_bytes(b"\xef\xbb\xbfA_X,A_Y,A_Z\r\n1.0,2.0,3.0\r\n,,\r\n3.0,4.0,5.0\r\n")
+    original = csvfmt.read(path)
+    assert original.labels == ("A",)
+    out = tmp_path / "out.csv"
+    csvfmt.write(fill_by_interp(original), out)
+    assert out.read_bytes() == path.read_bytes().replace(b"\n,,\r", b"\n2.0,3.0,4.0\r")
+
+
+def test_decimals_option_sets_the_precision_of_filled_cells(tmp_path):
+    original = csvfmt.read(write_text(tmp_path, PLAIN))
+    out = tmp_path / "out.csv"
+    csvfmt.write(fill_by_interp(original), out, decimals=4)
+    assert out.read_text().splitlines()[2] == "2,0.01,1.6,2.6,3.6,10.5000,20.5000,30.5000"
+
+
+def new_motion() -> Motion:
+    rng = np.random.default_rng(0)
+    positions = rng.normal(scale=500, size=(5, 2, 3))
+    observed = np.ones((5, 2), bool)
+    observed[1:3, 1] = False
+    return Motion(positions, observed, ("LASI", "R ASI"), 100.0, "m", first_frame=7)
+
+
+def test_new_file_layout(tmp_path):
+    out = tmp_path / "new.csv"
+    formats.write(new_motion(), out)
+    lines = out.read_text().splitlines()
+    assert lines[0] == "# units: m, rate: 100"
+    assert lines[1] == "Frame,Time,LASI_X,LASI_Y,LASI_Z,R ASI_X,R ASI_Y,R ASI_Z"
+    assert lines[3].startswith("8,0.01,") and lines[3].endswith(",,,")
+
+
+def test_new_file_round_trip_is_exact(tmp_path):
+    motion = new_motion()
+    out = tmp_path / "new.csv"
+    formats.write(motion, out)
+    back = formats.read(out)
+    assert back.labels == motion.labels
+    assert (back.rate, back.units, back.first_frame) == (100.0, "m", 7)
+    np.testing.assert_array_equal(back.observed, motion.observed)
+    np.testing.assert_array_equal(back.positions, motion.positions)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=False, width=64), min_size=6,
+                max_size=6 * 4))
+def test_new_file_round_trip_reproduces_any_floats(values):
+    n = len(values) // 6 * 6 or 6
+    data = np.array((values * 2)[:n], dtype=float).reshape(-1, 2, 3)
+    motion = Motion(data, np.isfinite(data).all(axis=2), ("A", "B"), 120.0)
+    lines = csvfmt.new_file_lines(motion)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "x.csv"
+        path.write_text("".join(lines))
+        back = csvfmt.read(path)
+    np.testing.assert_array_equal(back.observed, motion.observed)
+    np.testing.assert_array_equal(back.positions, motion.positions)
+
+
+def test_motion_that_no_longer_fits_its_source_is_written_as_a_new_file(tmp_path):
+    original = csvfmt.read(write_text(tmp_path, PLAIN))
+    cut = original.replace(positions=original.positions[:2], observed=original.observed[:2])
+    out = tmp_path / "out.csv"
+    csvfmt.write(cut, out)
+    assert out.read_text().splitlines()[1].startswith("Frame,Time,LASI_X")
+
+
+# ----------------------------------------------------------------------------- Vicon Nexus
+
+VICON = ("Trajectories,,,,,,,\r\n"
+         "100,,,,,,,\r\n"
+         ",,Sub:LASI,,,Sub:RASI,,\r\n"
+         "Frame,Sub Frame,X,Y,Z,X,Y,Z\r\n"
+         ",,mm,mm,mm,mm,mm,mm\r\n"
+         "5,0,1.25,2.25,3.25,,,\r\n"
+         "6,0,1.5,2.5,3.5,10.5,20.5,30.5\r\n"
+         "7,0,,,,10.75,20.75,30.75\r\n"
+         "\r\n"
+         "Model Outputs,,,,,,,\r\n"
+         "100,,,,,,,\r\n"
+         ",,Sub:LKneeAngles,,,,,\r\n"
+         "Frame,Sub Frame,X,Y,Z,,,\r\n"
+         ",,deg,deg,deg,,,\r\n"
+         "5,0,1,2,3,,,\r\n")
+
+
+def test_vicon_export_reads_the_trajectories_section(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, VICON))
+    assert motion.labels == ("Sub:LASI", "Sub:RASI")
+    assert (motion.rate, motion.units, motion.first_frame) == (100.0, "mm", 5)
+    assert motion.observed.tolist() == [[True, False], [True, True], [False, True]]
+    np.testing.assert_array_equal(motion.positions[2, 1], [10.75, 20.75, 30.75])
+    assert motion.source.notes == ("sections not read: Model Outputs",)
+
+
+def test_vicon_trajectories_after_a_devices_section(tmp_path):
+    devices = "Devices,,,,,,,\r\n1000,,,,,,,\r\n,,FP1,,,,,\r\nFrame,Sub Frame,Fx,Fy,Fz,,,\r\n" \
+              ",,N,N,N,,,\r\n1,0,1,2,3,,,\r\n,,,,,,,\r\n"
+    motion = csvfmt.read(write_text(tmp_path, devices + VICON))
+    assert motion.labels == ("Sub:LASI", "Sub:RASI") and motion.n_frames == 3
+
+
+def test_vicon_export_without_trajectories_is_a_format_error(tmp_path):
+    text = VICON[VICON.index("Model Outputs"):]
+    with pytest.raises(FormatError, match="without a Trajectories section"):
+        csvfmt.read(write_text(tmp_path, text))
+
+
+def test_vicon_patch_changes_only_filled_cells(tmp_path):
+    original = csvfmt.read(write_text(tmp_path, VICON))
+    repaired = fill_by_interp(original)
+    out = tmp_path / "out.csv"
+    csvfmt.write(repaired, out)
+    assert_patch_invariant(original, repaired, out)
+    assert out.read_bytes().split(b"\r\n")[5] == b"5,0,1.25,2.25,3.25,10.50,20.50,30.50"
+
+
+# ----------------------------------------------------------------------------- headerless
+
+def test_headerless_file_with_3k_columns_is_k_markers(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, "1,2,3,4,5,6\n1.5,2.5,3.5,NaN,NaN,NaN\n"))
+    assert motion.labels == ("M001", "M002")
+    assert motion.observed.tolist() == [[True, True], [True, False]]
+    assert motion.rate == 120
+
+
+def test_headerless_file_may_start_with_an_all_missing_frame(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, "NaN,NaN,NaN\n1,2,3\n"))
+    assert motion.observed.tolist() == [[False], [True]]
+
+
+def test_headerless_leading_frame_column(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, "3,1,2,3\n4,1,2,3\n"))
+    assert (motion.labels, motion.first_frame) == (("M001",), 3)
+
+
+def test_headerless_leading_time_column(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, "0,1,2,3\n0.02,1,2,3\n0.04,1,2,3\n"))
+    assert motion.rate == pytest.approx(50)
+
+
+def test_headerless_leading_frame_and_time_columns(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, "1,0,1,2,3\n2,0.005,1,2,3\n"))
+    assert (motion.first_frame, motion.rate) == (1, pytest.approx(200))
+
+
+def test_headerless_extra_column_that_is_not_a_counter_is_a_format_error(tmp_path):
+    with pytest.raises(FormatError, match="not a multiple of 3"):
+        csvfmt.read(write_text(tmp_path, "5,1,2,3\n4,1,2,3\n"))
+
+
+def test_headerless_patch_changes_only_filled_cells(tmp_path):
+    original = csvfmt.read(write_text(tmp_path, "1.0,2.0,3.0\nNaN,NaN,NaN\n2.0,3.0,4.0\n"))
+    repaired = fill_by_interp(original)
+    out = tmp_path / "out.csv"
+    csvfmt.write(repaired, out)
+    assert out.read_text() == "1.0,2.0,3.0\n1.5,2.5,3.5\n2.0,3.0,4.0\n"
+
+
+def test_patch_of_whole_number_columns_rounds_to_whole_numbers(tmp_path):
+    original = csvfmt.read(write_text(tmp_path, "1,2,3\nNaN,NaN,NaN\n3,4,5\n"))
+    out = tmp_path / "out.csv"
+    csvfmt.write(fill_by_interp(original), out)
+    assert out.read_text() == "1,2,3\n2,3,4\n3,4,5\n"
+
+
+# ----------------------------------------------------------------------------- Kinetics Toolkit
+
+KTK = ("Time,A[0],A[1],A[2],A[3],B[0],B[1],B[2],B[3]\r\n"
+       "0,0.1,0.2,0.3,1,1.1,1.2,1.3,1\r\n"
+       "0.02,0.2,0.3,0.4,1,nan,nan,nan,nan\r\n"
+       "0.04,0.3,0.4,0.5,1,1.3,1.4,1.5,1")
+
+
+def test_ktk_export_reads_points_in_metres(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, KTK))
+    assert motion.labels == ("A", "B")
+    assert (motion.units, motion.rate) == ("m", pytest.approx(50))
+    assert motion.observed.tolist() == [[True, True], [True, False], [True, True]]
+
+
+def test_ktk_patch_writes_the_homogeneous_coordinate(tmp_path):
+    original = csvfmt.read(write_text(tmp_path, KTK))
+    repaired = fill_by_interp(original)
+    out = tmp_path / "out.csv"
+    csvfmt.write(repaired, out)
+    assert_patch_invariant(original, repaired, out)
+    assert out.read_bytes().split(b"\r\n")[2] == b"0.02,0.2,0.3,0.4,1,1.2,1.3,1.4,1"
+
+
+# ----------------------------------------------------------------------------- real files
+
+def test_vicon_nexus_csv_agrees_with_its_c3d():
+    ezc3d = pytest.importorskip("ezc3d")
+    motion = csvfmt.read(shared_file("csv/vicon-nexus-markers.csv"))
+    c3d = ezc3d.c3d(str(shared_file("c3d/ezc3d-Vicon.c3d")))
+    labels = list(c3d["parameters"]["POINT"]["LABELS"]["value"])
+
+    def bare(label: str) -> str:
+        return label.split(":", 1)[-1]
+
+    assert [bare(s) for s in motion.labels] == [bare(s) for s in labels]
+    points = c3d["data"]["points"][:3].transpose(2, 1, 0)        # (frames, markers, 3)
+    np.testing.assert_array_equal(motion.observed, np.isfinite(points).all(axis=2))
+    seen = motion.observed
+    # Nexus prints 6 significant digits: relative error below 5e-6.
+    np.testing.assert_allclose(motion.positions[seen], points[seen], rtol=5e-6, atol=1e-9)
+
+
+def test_vicon_nexus_csv_patch_round_trip(tmp_path):
+    original, repaired, _ = patch_round_trip(shared_file("csv/vicon-nexus-markers.csv"),
+                                             tmp_path)
+    assert (repaired.observed & ~original.observed).sum() > 0
+
+
+def test_headerless_real_file_reads_13_markers_and_patches(tmp_path):
+    original, repaired, _ = patch_round_trip(
+        shared_file("csv/mogapfill-gait-raw-headerless.csv"), tmp_path)
+    assert original.n_markers == 13 and original.source.kind == "headerless"
+    assert (~original.observed).any() and (repaired.observed & ~original.observed).any()
+
+
+def test_ktk_real_file_reads_39_points():
+    motion = csvfmt.read(shared_file("csv/ktk-tennis_serve.csv"))
+    assert (motion.n_markers, motion.units, motion.source.kind) == (39, "m", "ktk")
+    assert motion.rate == pytest.approx(50)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", shared_files("csv", ".csv", ".txt"), ids=lambda p: p.name)
+def test_every_shared_csv_reads_and_patches(path, tmp_path):
+    patch_round_trip(path, tmp_path)

@@ -1,0 +1,242 @@
+"""TRC: tolerant reader, patch writer and OpenSim-layout new-file writer."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mocapfill import formats
+from mocapfill.errors import FormatError
+from mocapfill.formats import trc
+from mocapfill.motion import Motion
+from tests.conftest import shared_file, shared_files
+from tests.formats.test_csv import fill_by_interp, patch_round_trip, write_text
+
+KEYS = "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame" \
+       "\tOrigNumFrames"
+
+
+def trc_text(rows: list[str], *, frames: int = 3, markers: int = 2, units: str = "mm",
+             names: str = "LASI\t\t\tR ASI\t\t\t", axes: bool = True, blank: bool = True,
+             end: str = "\n") -> str:
+    head = ["PathFileType\t4\t(X/Y/Z)\tclip.trc", KEYS,
+            f"100\t100\t{frames}\t{markers}\t{units}\t100\t1\t{frames}",
+            f"Frame#\tTime\t{names}"]
+    if axes:
+        head.append("\t\tX1\tY1\tZ1\tX2\tY2\tZ2")
+    if blank:
+        head.append("")
+    return end.join(head + rows) + end
+
+
+ROWS = ["1\t0.00\t1.500\t2.500\t3.500\t10.000\t20.000\t30.000",
+        "2\t0.01\t1.600\t2.600\t3.600\t\t\t",
+        "3\t0.02\t1.700\t2.700\t3.700\t11.000\t21.000\t31.000"]
+
+
+def test_reads_labels_rate_units_and_first_frame(tmp_path):
+    motion = trc.read(write_text(tmp_path, trc_text(ROWS, units="m"), "a.trc"))
+    assert motion.labels == ("LASI", "R ASI")
+    assert (motion.rate, motion.units, motion.first_frame) == (100.0, "m", 1)
+    np.testing.assert_array_equal(motion.positions[2, 1], [11, 21, 31])
+
+
+def test_blank_cells_are_missing(tmp_path):
+    motion = trc.read(write_text(tmp_path, trc_text(ROWS), "a.trc"))
+    assert motion.observed.tolist() == [[True, True], [True, False], [True, True]]
+
+
+def test_nan_cells_are_missing(tmp_path):
+    rows = [ROWS[0], "2\t0.01\tnan\tNaN\tnan\t1\t2\t3", ROWS[2]]
+    motion = trc.read(write_text(tmp_path, trc_text(rows), "a.trc"))
+    assert motion.observed[:, 0].tolist() == [True, False, True]
+
+
+def test_comma_delimited_file(tmp_path):
+    text = trc_text(ROWS).replace("\t", ",")
+    motion = trc.read(write_text(tmp_path, text, "a.trc"))
+    assert motion.labels == ("LASI", "R ASI")
+    assert motion.observed.tolist() == [[True, True], [True, False], [True, True]]
+
+
+def test_axis_line_and_blank_line_are_optional(tmp_path):
+    motion = trc.read(write_text(tmp_path, trc_text(ROWS, axes=False, blank=False), "a.trc"))
+    assert motion.n_frames == 3 and motion.observed[0].all()
+
+
+def test_first_frame_comes_from_the_first_frame_number(tmp_path):
+    rows = [row.replace(f"{k + 1}\t", f"{k + 40}\t", 1) for k, row in enumerate(ROWS)]
+    assert trc.read(write_text(tmp_path, trc_text(rows), "a.trc")).first_frame == 40
+
+
+def test_marker_names_are_stripped_of_surrounding_blanks(tmp_path):
+    text = trc_text(ROWS, names=" LASI \t\t\tR ASI \t\t\t")
+    assert trc.read(write_text(tmp_path, text, "a.trc")).labels == ("LASI", "R ASI")
+
+
+def test_padded_header_values_are_matched_to_their_keys(tmp_path):
+    text = trc_text(ROWS).replace("100\t100\t3\t2\tmm\t100\t1\t3",
+                                  "  100.0\t\t  100.0\t\t    3\t\t     2\t\t mm\t  100.0\t 1\t 3")
+    motion = trc.read(write_text(tmp_path, text, "a.trc"))
+    assert (motion.rate, motion.units) == (100.0, "mm")
+    assert motion.source.notes == ()
+
+
+def test_header_marker_count_disagreeing_with_the_names_is_noted(tmp_path):
+    motion = trc.read(write_text(tmp_path, trc_text(ROWS, markers=4), "a.trc"))
+    assert motion.n_markers == 2
+    assert motion.source.notes == ("header declares 4 markers, the names line has 2; 2 read",)
+
+
+def test_fewer_rows_than_declared_frames_reads_the_rows_and_reports_truncation(tmp_path):
+    motion = trc.read(write_text(tmp_path, trc_text(ROWS, frames=10), "a.trc"))
+    assert motion.n_frames == 3
+    assert (motion.source.declared_frames, motion.source.truncated_rows_read) == (10, 3)
+    assert motion.source.truncated
+    assert "truncated: 3 of 10 declared frames read" in motion.source.notes
+
+
+def test_complete_file_is_not_truncated(tmp_path):
+    motion = trc.read(write_text(tmp_path, trc_text(ROWS), "a.trc"))
+    assert not motion.source.truncated and motion.source.truncated_rows_read is None
+
+
+def test_file_cut_inside_its_last_row_reads_the_cut_cell_as_missing(tmp_path):
+    text = trc_text(ROWS[:2] + ["3\t0.02\t1.700\t2.700\t3.700\t11.000\t21.0"], end="\n")
+    path = write_text(tmp_path, text.rstrip("\n"), "a.trc")
+    motion = trc.read(path)
+    assert motion.observed[2].tolist() == [True, False]
+    assert any("last row is shorter" in note for note in motion.source.notes)
+
+
+def test_values_beyond_the_named_markers_are_ignored_and_noted(tmp_path):
+    rows = [ROWS[0] + "\t7\t8\t9", ROWS[1], ROWS[2]]
+    motion = trc.read(write_text(tmp_path, trc_text(rows), "a.trc"))
+    assert motion.n_markers == 2
+    assert any("1 rows hold values beyond" in note for note in motion.source.notes)
+
+
+def test_file_not_starting_with_path_file_type_is_a_format_error(tmp_path):
+    with pytest.raises(FormatError, match="not a TRC file"):
+        trc.read(write_text(tmp_path, "Frame#\tTime\n1\t0\n", "a.trc"))
+
+
+def test_file_without_rows_is_a_format_error(tmp_path):
+    with pytest.raises(FormatError, match="no data rows"):
+        trc.read(write_text(tmp_path, trc_text([]), "a.trc"))
+
+
+def test_unparsable_cell_error_names_row_and_column(tmp_path):
+    rows = [ROWS[0], "2\t0.01\t1.6\tx1\t3.6\t\t\t", ROWS[2]]
+    path = write_text(tmp_path, trc_text(rows), "a.trc")
+    with pytest.raises(FormatError) as info:
+        trc.read(path)
+    assert str(info.value) == f"{path}: row 8, column Y1 (LASI): cannot parse 'x1'"
+
+
+# ----------------------------------------------------------------------------- writers
+
+def test_patch_changes_only_filled_cells(tmp_path):
+    path = write_text(tmp_path, trc_text(ROWS, end="\r\n"), "a.trc")
+    original = trc.read(path)
+    repaired = fill_by_interp(original)
+    out = tmp_path / "out.trc"
+    trc.write(repaired, out)
+    expected = path.read_bytes().replace(b"1.600\t2.600\t3.600\t\t\t",
+                                         b"1.600\t2.600\t3.600\t10.500\t20.500\t30.500")
+    assert out.read_bytes() == expected
+
+
+def test_patch_pads_a_short_row(tmp_path):
+    rows = [ROWS[0], "2\t0.01\t1.600\t2.600\t3.600", ROWS[2]]
+    original = trc.read(write_text(tmp_path, trc_text(rows), "a.trc"))
+    out = tmp_path / "out.trc"
+    trc.write(fill_by_interp(original), out)
+    assert out.read_text().splitlines()[7] == "2\t0.01\t1.600\t2.600\t3.600\t10.500\t20.500\t30.500"
+
+
+def opensim_motion() -> Motion:
+    positions = np.arange(3 * 2 * 3, dtype=float).reshape(3, 2, 3) / 7.0
+    observed = np.array([[True, True], [True, False], [True, True]])
+    return Motion(positions, observed, ("LASI", "R ASI*"), 60.0, "mm", first_frame=5)
+
+
+def test_new_file_has_opensim_header_layout(tmp_path):
+    out = tmp_path / "walk.trc"
+    formats.write(opensim_motion(), out)       # through the atomic temp-file writer
+    lines = out.read_text().split("\n")
+    assert lines[:6] == ["PathFileType\t4\t(X/Y/Z)\twalk.trc",
+                         KEYS,
+                         "60\t60\t3\t2\tmm\t60\t5\t3",
+                         "Frame#\tTime\tLASI\t\t\tR_ASI_\t\t\t",
+                         "\t\tX1\tY1\tZ1\tX2\tY2\tZ2\t",
+                         ""]
+    assert lines[7] == "6\t0.016666667\t0.8571428571428571\t1\t1.1428571428571428\t\t\t\t"
+
+
+def test_new_file_reads_back_identically(tmp_path):
+    motion = opensim_motion()
+    out = tmp_path / "walk.trc"
+    formats.write(motion, out)
+    back = trc.read(out)
+    assert back.labels == ("LASI", "R_ASI_")
+    assert (back.rate, back.units, back.first_frame) == (60.0, "mm", 5)
+    assert back.source.notes == ()
+    np.testing.assert_array_equal(back.observed, motion.observed)
+    np.testing.assert_array_equal(back.positions, motion.positions)
+
+
+def test_motion_from_another_format_is_written_as_a_new_file(tmp_path):
+    csv_path = write_text(tmp_path, "A_X,A_Y,A_Z\n1.5,2,3\n", "a.csv")
+    out = tmp_path / "a.trc"
+    formats.write(formats.read(csv_path), out)
+    assert out.read_text().startswith("PathFileType\t4\t(X/Y/Z)\ta.trc\n")
+
+
+# ----------------------------------------------------------------------------- real files
+
+def test_btk_gait_trusts_the_names_line_over_num_markers(tmp_path):
+    original, repaired, _ = patch_round_trip(shared_file("trc/btk-Gait.trc"), tmp_path)
+    assert (original.n_frames, original.n_markers) == (487, 33)
+    assert "header declares 66 markers, the names line has 33; 33 read" in original.source.notes
+    assert 0.4 < (~original.observed).mean() < 0.5
+    assert (repaired.observed & ~original.observed).sum() > 1000
+
+
+def test_nimble_step_width_reads_its_501_rows_of_27107_declared():
+    motion = trc.read(shared_file("trc/nimble-step_width.trc"))
+    assert (motion.n_frames, motion.n_markers) == (501, 32)
+    assert (motion.source.declared_frames, motion.source.truncated_rows_read) == (27107, 501)
+
+
+def test_comma_truncated_trc_reads_93_of_652_declared_frames():
+    motion = formats.read(shared_file("bad/pyomeca-markers-comma-truncated.trc"))
+    assert (motion.n_frames, motion.n_markers) == (93, 51)
+    assert (motion.source.declared_frames, motion.source.truncated_rows_read) == (652, 93)
+    assert "truncated: 93 of 652 declared frames read" in motion.source.notes
+
+
+def test_misaligned_header_of_nimble_motion_capture_walk():
+    motion = trc.read(shared_file("trc/nimble-motion_capture_walk.trc"))
+    assert (motion.n_frames, motion.n_markers, motion.rate, motion.units) == (238, 41, 100, "mm")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", shared_files("trc", ".trc") + shared_files("bad", ".trc"),
+                         ids=lambda p: p.name)
+def test_every_shared_trc_reads_and_patches(path: Path, tmp_path):
+    patch_round_trip(path, tmp_path)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", shared_files("trc", ".trc"), ids=lambda p: p.name)
+def test_every_shared_trc_converts_to_an_opensim_file_and_back(path: Path, tmp_path):
+    motion = trc.read(path)
+    out = tmp_path / "new.trc"
+    trc.write(motion.replace(source=None), out)
+    back = trc.read(out)
+    assert back.labels == tuple(trc.opensim_name(s, j) for j, s in enumerate(motion.labels))
+    np.testing.assert_array_equal(back.observed, motion.observed)
+    np.testing.assert_array_equal(back.positions, motion.positions)
+    assert back.rate == motion.rate
