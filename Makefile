@@ -18,10 +18,16 @@ $(VENV)/.test-installed: $(VENV)/.installed
 	touch $@
 
 demo: $(VENV)/.installed
-	$(BIN)/mocapfill info sample_data/walk_gapped.csv
+	@echo "== before: markers with gaps in sample_data/walk_gapped.csv"
+	$(BIN)/mocapfill info --gaps-only sample_data/walk_gapped.csv
+	@echo "== repair (default method: trnn)"
 	$(BIN)/mocapfill repair sample_data/walk_gapped.csv $(VENV)/walk_repaired.csv
-	$(BIN)/mocapfill info $(VENV)/walk_repaired.csv
+	@echo "== after"
+	$(BIN)/mocapfill info --gaps-only $(VENV)/walk_repaired.csv
+	@echo "== error against the gap-free truth: trnn, then linear interpolation for comparison"
 	$(BIN)/mocapfill score sample_data/walk_truth.csv $(VENV)/walk_repaired.csv --gapped sample_data/walk_gapped.csv
+	@$(BIN)/mocapfill repair sample_data/walk_gapped.csv $(VENV)/walk_linear.csv --method linear 2>/dev/null
+	$(BIN)/mocapfill score sample_data/walk_truth.csv $(VENV)/walk_linear.csv --gapped sample_data/walk_gapped.csv
 
 test: $(VENV)/.test-installed
 	$(BIN)/python -m pytest -m "not slow" -q

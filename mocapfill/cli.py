@@ -443,7 +443,7 @@ def score(truth_path: Path, repaired_path: Path, gapped_path, as_json: bool,
         click.echo(json.dumps(result.as_dict()))
         return
     unit = truth.units
-    mm = ("" if result.rmse_mm is None
+    mm = ("" if result.rmse_mm is None or unit.strip().lower() == "mm"
           else f" = {result.rmse_mm:.3f} mm (3-D {result.rmse_3d_mm:.3f} mm)")
     click.echo(f"RMSE {result.rmse:.6g} {unit} (3-D {result.rmse_3d:.6g} {unit}){mm} over "
                f"{result.missing_samples} missing samples"
@@ -457,8 +457,9 @@ def score(truth_path: Path, repaired_path: Path, gapped_path, as_json: bool,
 @main.command()
 @click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
+@click.option("--gaps-only", is_flag=True, help="List only the markers with missing samples.")
 @_zero_option
-def info(in_path: Path, as_json: bool, zero_is_missing: str) -> None:
+def info(in_path: Path, as_json: bool, gaps_only: bool, zero_is_missing: str) -> None:
     """Per-marker missing samples n/N (%), number of gaps, longest gap (frames, seconds)."""
     from .report import format_info, info_dict
 
@@ -466,7 +467,7 @@ def info(in_path: Path, as_json: bool, zero_is_missing: str) -> None:
     if as_json:
         click.echo(json.dumps(info_dict(motion)))
     else:
-        click.echo(format_info(motion))
+        click.echo(format_info(motion, gaps_only=gaps_only))
 
 
 # ---------------------------------------------------------------- convert

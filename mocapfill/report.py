@@ -28,8 +28,11 @@ def info_dict(motion: Motion) -> dict:
     }
 
 
-def format_info(motion: Motion) -> str:
-    """A table: marker, missing n/N (%), gaps, longest gap in frames and seconds."""
+def format_info(motion: Motion, gaps_only: bool = False) -> str:
+    """A table: marker, missing n/N (%), gaps, longest gap in frames and seconds.
+
+    With ``gaps_only``, markers with no missing sample are left out of the table.
+    """
     rows = summarise(motion)
     width = max([6] + [len(r.label) for r in rows])
     total = int((~motion.observed).sum())
@@ -39,6 +42,8 @@ def format_info(motion: Motion) -> str:
              f"({100 * total / max(motion.observed.size, 1):.1f}%)",
              f"{'marker':<{width}}  {'missing':>16}  {'gaps':>4}  {'longest':>15}"]
     for row, fillable in zip(rows, motion.fillable):
+        if gaps_only and not row.missing:
+            continue
         note = "" if fillable else "  (not a marker: never filled)"
         lines.append(f"{row.label:<{width}}  {f'{row.missing}/{row.frames}':>9} "
                      f"({row.percent:5.1f}%)  {row.gaps:>4}  "
