@@ -135,16 +135,57 @@ def _gap_status(gap: Gap, motion: Motion, options: RepairOptions) -> str:
     return FILLED
 
 
-def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trnn",
-                    **solver_options) -> np.ndarray:
-    """Complete a (3·markers × frames) matrix in the unit-invariant scale.
+WINDOW_FRAMES = 20000
+WINDOW_OVERLAP = 2000
 
-    Observed entries of the result equal ``matrix`` exactly.
-    """
+
+def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
+                  solver_options: dict) -> np.ndarray:
     scale = UnitScale.fit(matrix, observed)
     solved = get_method(method)(scale.forward(np.where(observed, matrix, 0.0)), observed,
                                 **solver_options)
-    return np.where(observed, matrix, scale.inverse(solved))
+    return scale.inverse(solved)
+
+
+def window_bounds(n_frames: int, window: int, overlap: int) -> list[tuple[int, int]]:
+    """[start, stop) of overlapping windows covering ``n_frames``; the last one is full."""
+    if n_frames <= window:
+        return [(0, n_frames)]
+    step = window - overlap
+    starts = list(range(0, n_frames - window, step)) + [n_frames - window]
+    return [(a, a + window) for a in starts]
+
+
+def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trnn", *,
+                    window_frames: int = WINDOW_FRAMES, window_overlap: int = WINDOW_OVERLAP,
+                    **solver_options) -> np.ndarray:
+    """Complete a (3·markers × frames) matrix in the unit-invariant scale.
+
+    Clips longer than ``window_frames`` are solved in windows overlapping by
+    ``window_overlap`` frames, blended with linear cross-fades, so memory stays bounded and
+    time linear in the clip length (0 disables windowing). Observed entries of the result
+    equal ``matrix`` exactly.
+    """
+    n = matrix.shape[1]
+    if not window_frames or n <= window_frames:
+        return np.where(observed, matrix, _solve_scaled(matrix, observed, method,
+                                                        solver_options))
+    if not 0 < window_overlap < window_frames // 2:
+        raise ParameterError("window overlap must be positive and under half the window")
+    total = np.zeros(matrix.shape)
+    weight = np.zeros(n)
+    ramp = np.linspace(0.0, 1.0, window_overlap + 2)[1:-1]
+    for start, stop in window_bounds(n, window_frames, window_overlap):
+        w = np.ones(stop - start)
+        if start > 0:
+            w[:window_overlap] = ramp
+        if stop < n:
+            w[-window_overlap:] = ramp[::-1]
+        part = _solve_scaled(matrix[:, start:stop], observed[:, start:stop], method,
+                             solver_options)
+        total[:, start:stop] += w * part
+        weight[start:stop] += w
+    return np.where(observed, matrix, total / weight)
 
 
 def _fill_ends(values: np.ndarray, observed: np.ndarray, gap: Gap, ends: str) -> None:

@@ -137,3 +137,31 @@ def test_smooth_fills_pass_the_default_jump_check():
     for method in ("trnn", "spline", "linear"):
         result = repair(gapped, RepairOptions(method=method))
         assert all(o.status == "filled" for o in result.gaps), method
+
+
+def test_window_bounds_cover_the_clip_with_overlap():
+    from mocapfill.pipeline import window_bounds
+
+    bounds = window_bounds(25_000, 10_000, 1_000)
+    assert bounds[0] == (0, 10_000) and bounds[-1] == (15_000, 25_000)
+    assert all(b[0] < a[1] - 999 for a, b in zip(bounds, bounds[1:]))
+
+
+def test_windowed_solve_is_close_to_the_whole_clip_solve():
+    from mocapfill.pipeline import complete_matrix
+
+    truth = smooth_clip(3000, 10)
+    gapped = truth
+    for marker, start in [(1, 400), (3, 990), (5, 1500), (7, 2200)]:
+        gapped = with_gap(gapped, marker, start, start + 60)
+    matrix, observed = gapped.matrix()
+    whole = complete_matrix(matrix, observed, "spline", window_frames=0)
+    windowed = complete_matrix(matrix, observed, "spline", window_frames=1000,
+                               window_overlap=200)
+    expected, _ = truth.matrix()
+    missing = ~observed
+    error_whole = np.sqrt(np.mean((whole - expected)[missing] ** 2))
+    error_windowed = np.sqrt(np.mean((windowed - expected)[missing] ** 2))
+    # A spline is local: windows change only the gap that straddles a window edge.
+    assert error_windowed < 1.5 * error_whole
+    np.testing.assert_array_equal(windowed[observed], matrix[observed])
