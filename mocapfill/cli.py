@@ -456,18 +456,57 @@ def score(truth_path: Path, repaired_path: Path, gapped_path, as_json: bool,
 
 @main.command()
 @click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
+@click.argument("repaired_path", metavar="[REPAIRED]", required=False,
+                type=click.Path(path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
 @click.option("--gaps-only", is_flag=True, help="List only the markers with missing samples.")
 @_zero_option
-def info(in_path: Path, as_json: bool, gaps_only: bool, zero_is_missing: str) -> None:
-    """Per-marker missing samples n/N (%), number of gaps, longest gap (frames, seconds)."""
-    from .report import format_info, info_dict
+def info(in_path: Path, repaired_path: Path | None, as_json: bool, gaps_only: bool,
+         zero_is_missing: str) -> None:
+    """Per-marker missing samples n/N (%), number of gaps, longest gap (frames, seconds).
+
+    With REPAIRED, the table shows each marker before and after the repair.
+    """
+    from .report import format_info, format_info_before_after, info_dict
 
     motion = _read(in_path, zero_is_missing)
+    repaired = None if repaired_path is None else _read(repaired_path, zero_is_missing)
     if as_json:
-        click.echo(json.dumps(info_dict(motion)))
+        payload = info_dict(motion)
+        if repaired is not None:
+            payload = {"before": payload, "after": info_dict(repaired)}
+        click.echo(json.dumps(payload))
+    elif repaired is not None:
+        click.echo(format_info_before_after(motion, repaired, gaps_only=gaps_only))
     else:
         click.echo(format_info(motion, gaps_only=gaps_only))
+
+
+# ---------------------------------------------------------------- plot
+
+
+@main.command()
+@click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
+@click.argument("repaired_path", metavar="[REPAIRED]", required=False,
+                type=click.Path(path_type=Path))
+@click.option("-o", "--output", "out_path", required=True, type=click.Path(path_type=Path),
+              help="Image to write: FILE.png, FILE.svg or FILE.html.")
+@click.option("--markers", multiple=True, metavar="NAME|GLOB",
+              help="Markers to draw (repeatable; globs). Default: up to 8 with the most "
+                   "missing data.")
+@_zero_option
+def plot(in_path: Path, repaired_path: Path | None, out_path: Path, markers: tuple[str, ...],
+         zero_is_missing: str) -> None:
+    """Draw x/y/z trajectories over time (s) in file units: gaps shaded, fills dashed.
+
+    Needs the optional extra: pip install 'mocapfill[plot]'.
+    """
+    from .plot import plot as draw
+
+    original = _read(in_path, zero_is_missing)
+    repaired = None if repaired_path is None else _read(repaired_path, zero_is_missing)
+    drawn = draw(original, repaired, out_path, markers=markers)
+    click.echo(f"{out_path}: {len(drawn)} markers ({', '.join(drawn)})", err=True)
 
 
 # ---------------------------------------------------------------- convert

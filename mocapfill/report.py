@@ -51,6 +51,25 @@ def format_info(motion: Motion, gaps_only: bool = False) -> str:
     return "\n".join(lines)
 
 
+def format_info_before_after(before: Motion, after: Motion, gaps_only: bool = False) -> str:
+    """Per-marker missing n/N, gaps and longest gap before and after a repair."""
+    if before.labels != after.labels or before.n_frames != after.n_frames:
+        raise FormatError(after.path, "does not match the original in markers × frames")
+    rows_before, rows_after = summarise(before), summarise(after)
+    width = max([6] + [len(r.label) for r in rows_before])
+    lines = [f"{before.path or 'before'} -> {after.path or 'after'}: missing samples "
+             f"{int((~before.observed).sum())} -> {int((~after.observed).sum())}",
+             f"{'marker':<{width}}  {'missing before':>14}  {'after':>9}  {'gaps':>9}  "
+             f"{'longest (fr)':>13}"]
+    for b, a in zip(rows_before, rows_after):
+        if gaps_only and not b.missing:
+            continue
+        lines.append(f"{b.label:<{width}}  {f'{b.missing}/{b.frames}':>14}  "
+                     f"{f'{a.missing}/{a.frames}':>9}  {f'{b.gaps}->{a.gaps}':>9}  "
+                     f"{f'{b.longest}->{a.longest}':>13}")
+    return "\n".join(lines)
+
+
 GAP_FIELDS = ("marker", "first_frame", "last_frame", "length_frames", "length_s", "method",
               "status")
 

@@ -124,3 +124,22 @@ def test_every_command_has_help_with_units():
         result = run(command, "--help")
         assert result.exit_code == 0 and "Usage" in result.output
     assert "seconds" in run("repair", "--help").output
+
+
+def test_info_with_repaired_file_shows_before_and_after(clip_files):
+    run("repair", clip_files / "gapped.npz", clip_files / "o.npz")
+    result = run("info", clip_files / "gapped.npz", clip_files / "o.npz", "--gaps-only")
+    lines = result.stdout.splitlines()
+    assert "missing samples 100 -> 0" in lines[0]
+    assert [line.split()[0] for line in lines[2:]] == ["MK01", "MK04"]
+    assert "60/300" in lines[2] and "0/300" in lines[2]
+
+
+def test_plot_command_writes_the_image(clip_files):
+    pytest.importorskip("matplotlib")
+    run("repair", clip_files / "gapped.npz", clip_files / "o.npz")
+    result = run("plot", clip_files / "gapped.npz", clip_files / "o.npz", "-o",
+                 clip_files / "p.png")
+    assert result.exit_code == 0, result.output
+    assert (clip_files / "p.png").read_bytes().startswith(b"\x89PNG")
+    assert "MK01, MK04" in result.stderr
