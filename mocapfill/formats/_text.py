@@ -345,11 +345,13 @@ def column_styles(source: TextSource, cells_needed: set[int]) -> dict[int, Numbe
 
 def patched_lines(source: TextSource, motion: Motion,
                   decimals: int | None = None) -> list[str]:
-    """The original lines with the cells of newly observed samples rewritten.
+    """The original lines with the cells of samples whose observed state changed.
 
-    Only samples missing in the file and observed in ``motion`` change; the values of
-    samples the file already held are never rewritten, and a sample the Motion marks
-    missing but the file holds is left as the file has it (a patch can only fill).
+    Samples missing in the file and observed in ``motion`` are written with the column's
+    own precision; samples the file holds but the Motion marks missing (gaps added by
+    ``simulate``) are blanked with the file's own missing token (the first one found in
+    its rows, else an empty cell). The values of samples observed in both are never
+    rewritten.
 
     Parameters
     ----------
@@ -361,9 +363,11 @@ def patched_lines(source: TextSource, motion: Motion,
         Decimals for the filled cells; None matches each column's own precision.
     """
     filled = motion.observed & ~source.observed
-    frames, markers = np.nonzero(filled)
+    erased = source.observed & ~motion.observed
+    frames, markers = np.nonzero(filled | erased)
     if frames.size == 0:
         return list(source.lines)
+    token = missing_token(source) if erased.any() else ""
     needed = {int(c) for c in np.unique(source.columns[markers].reshape(-1))}
     styles = (column_styles(source, needed) if decimals is None
               else dict.fromkeys(needed, NumberStyle(int(decimals))))
@@ -376,6 +380,10 @@ def patched_lines(source: TextSource, motion: Motion,
         body, ending = split_ending(lines[index])
         cells = split_cells(body, source.delimiter)
         for m in marker_list:
+            if erased[f, m]:
+                for axis in range(3):
+                    _set_cell(cells, int(source.columns[m, axis]), token)
+                continue
             for axis in range(3):
                 c = int(source.columns[m, axis])
                 _set_cell(cells, c, styles[c].format(motion.positions[f, m, axis]))
@@ -385,6 +393,20 @@ def patched_lines(source: TextSource, motion: Motion,
                     _set_cell(cells, w, "1")
         lines[index] = source.delimiter.join(cells) + ending
     return lines
+
+
+def missing_token(source: TextSource) -> str:
+    """How this file writes a missing cell: the first missing token in its marker cells."""
+    marker_cells = np.unique(source.columns.reshape(-1))
+    for f in np.flatnonzero((~source.observed).any(axis=1)):
+        cells = split_cells(split_ending(source.lines[int(source.row_lines[f])])[0],
+                            source.delimiter)
+        for c in marker_cells:
+            if c < len(cells):
+                text = cells[c].strip()
+                if text.lower() in MISSING_TOKENS:
+                    return text
+    return ""
 
 
 def _set_cell(cells: list[str], index: int, text: str) -> None:

@@ -438,9 +438,10 @@ def write(motion: Motion, path: Path, **_options) -> None:
     Parameters
     ----------
     motion
-        The clip. When its ``source`` is a :class:`C3DSource`, only samples that were
-        missing in that file and are observed in ``motion`` are written (fillable points
-        only); everything else in the output is a byte copy of the original.
+        The clip. When its ``source`` is a :class:`C3DSource`, only samples whose observed
+        state changed are written (fillable points only): newly observed ones with word 4 =
+        0 (computed), newly missing ones (simulated gaps) as x = y = z = 0 with word 4 = -1;
+        everything else in the output is a byte copy of the original.
     path
         Output file.
 
@@ -471,16 +472,20 @@ def _patched(motion: Motion, source: C3DSource, out: Path) -> bytes:
     if motion.observed.shape != source.observed.shape:
         raise FormatError(out, f"motion is {motion.observed.shape} (frames, markers) but its "
                                f"source C3D holds {source.observed.shape}; cannot patch")
-    fill = motion.observed & ~source.observed & (source.fillable & motion.fillable)[None, :]
-    frames, markers = np.nonzero(fill)
+    editable = (source.fillable & motion.fillable)[None, :]
+    fill = motion.observed & ~source.observed & editable
+    # Samples removed (e.g. by `simulate`) become C3D gaps: x = y = z = 0, word 4 = -1.
+    erase = ~motion.observed & source.observed & editable
+    frames, markers = np.nonzero(fill | erase)
     if frames.size == 0:
         return original
-    values = motion.positions[frames, markers]                     # (k, 3), finite
+    erased = erase[frames, markers]
+    values = np.where(erased[:, None], 0.0, motion.positions[frames, markers])  # finite
+    word4 = np.where(erased, -1.0, 0.0)
     if source.is_float:
         if not np.isfinite(values.astype(np.float32) * np.float32(4)).all():
             raise FormatError(out, "a filled value overflows the float32 range of this C3D")
-        encoded = _encode_floats(np.column_stack([values, np.zeros(len(values))]),
-                                 source.processor)
+        encoded = _encode_floats(np.column_stack([values, word4]), source.processor)
     else:
         raw = np.rint(values / source.scale)
         if raw.max() > INT16_MAX or raw.min() < INT16_MIN:
@@ -488,7 +493,7 @@ def _patched(motion: Motion, source: C3DSource, out: Path) -> bytes:
             raise FormatError(out, f"a filled value ({worst:g}) would overflow the int16 range "
                                    f"of this integer C3D (scale {source.scale:g}, limit "
                                    f"{INT16_MAX * source.scale:g}); write a float C3D instead")
-        words = np.column_stack([raw, np.zeros(len(raw))]).astype(_int_dtype(source.processor))
+        words = np.column_stack([raw, word4]).astype(_int_dtype(source.processor))
         encoded = words.view(np.uint8)
     record = 4 * source.word_size
     offsets = (source.data_start + frames * source.frame_stride
