@@ -526,5 +526,32 @@ def convert(in_path: Path, out_path: Path, zero_is_missing: str) -> None:
                err=True)
 
 
+# ---------------------------------------------------------------- bench
+
+
+@main.group()
+def bench() -> None:
+    """Benchmarks: speed (make bench), accuracy, and the paper's experiments."""
+
+
+@bench.command("speed")
+@click.option("--runs", type=click.IntRange(1, 100), default=5, show_default=True,
+              help="Runs per case (medians are reported).")
+@click.option("--quick", is_flag=True,
+              help="Skip the 30-minute and 300-marker synthetic clips.")
+@click.option("--no-compare", is_flag=True, help="Skip the trnn-paper and tsmc runs.")
+@click.option("--json", "json_path", type=click.Path(path_type=Path), default=None,
+              help="Also write the rows to FILE.json.")
+def bench_speed(runs: int, quick: bool, no_compare: bool, json_path: Path | None) -> None:
+    """Wall time (s) of `mocapfill repair` per case, iterations, ms per iteration against
+    the computed floor, peak memory (MB), and trnn-paper / tsmc side by side."""
+    from .bench_speed import format_speed_table, rows_as_dicts, run_speed
+
+    rows = run_speed(runs=runs, quick=quick, compare=not no_compare)
+    click.echo(format_speed_table(rows))
+    if json_path is not None:
+        json_path.write_text(json.dumps(rows_as_dicts(rows), indent=1))
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

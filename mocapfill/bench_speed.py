@@ -1,0 +1,220 @@
+"""Speed benchmark (``make bench``, ``mocapfill bench speed``).
+
+Every case times the real command, ``mocapfill repair IN OUT``, in a fresh Python process
+(start-up, reading and writing included): min / median / max wall time over ``runs`` runs
+and the peak resident memory of the child. The solver is also timed in-process to report
+iterations, milliseconds per iteration and the floor computed for one iteration on this
+machine (its FLOPs at the measured matrix-product rate plus its memory passes at the
+measured copy bandwidth plus its two DCTs), and the same clip is repaired with
+``trnn-paper`` and ``tsmc`` for a side-by-side ratio.
+"""
+from __future__ import annotations
+
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import formats
+from .gaps import simulate_gaps
+from .motion import Motion
+
+SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+@dataclass
+class SpeedRow:
+    """One benchmark case."""
+
+    case: str
+    method: str
+    frames: int
+    markers: int
+    runs: int
+    wall_min_s: float
+    wall_median_s: float
+    wall_max_s: float
+    peak_rss_mb: float
+    target_s: float | None = None
+    iterations: int | None = None
+    ms_per_iteration: float | None = None
+    floor_ms_per_iteration: float | None = None
+    notes: list[str] = field(default_factory=list)
+
+
+def _run_child(args: list[str]) -> tuple[float, float, int]:
+    """Wall seconds, peak RSS (MB) and exit status of one command in a new process."""
+    started = time.perf_counter()
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - started
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.stderr is not None:
+        proc.stderr.close()
+    return wall, usage.ru_maxrss / 1024.0, proc.returncode
+
+
+def time_command(args: list[str], runs: int) -> tuple[list[float], float]:
+    walls, peak = [], 0.0
+    for _ in range(runs):
+        wall, rss, code = _run_child(args)
+        if code != 0:
+            raise RuntimeError(f"{' '.join(args)} exited with {code}")
+        walls.append(wall)
+        peak = max(peak, rss)
+    return walls, peak
+
+
+def _cli() -> list[str]:
+    return [sys.executable, "-m", "mocapfill.cli"]
+
+
+def iteration_floor_ms(m: int, n: int, d: int | None = None) -> float:
+    """The floor of one TrNN iteration on an m × n clip, measured on this machine.
+
+    FLOPs: three m×n×d products (W R, Wᵀ L, L Rᵀ) at 2mnd each plus two d×d Gram
+    products; memory: about ten passes over m×n float64 arrays; two DCTs of m×n.
+    """
+    d = m if d is None else d
+    rng = np.random.default_rng(0)
+    a = rng.standard_normal((m, n))
+    b = rng.standard_normal((n, d))
+    best_gemm = min(_timed(lambda: a @ b) for _ in range(5))
+    gemm_rate = 2.0 * m * n * d / best_gemm
+    out = np.empty_like(a)
+    best_pass = min(_timed(lambda: np.add(a, a, out=out)) for _ in range(5))
+    bandwidth = 3 * a.nbytes / best_pass            # two reads and a write
+    from scipy.fft import dct, idct
+
+    best_dct = min(_timed(lambda: idct(dct(a, norm="ortho", axis=1), norm="ortho", axis=1))
+                   for _ in range(3))
+    flops = 3 * 2.0 * m * n * d + 2 * 2.0 * (m + n) * d * d
+    return 1000.0 * (flops / gemm_rate + 10 * a.nbytes / bandwidth + best_dct)
+
+
+def _timed(fn) -> float:
+    started = time.perf_counter()
+    fn()
+    return time.perf_counter() - started
+
+
+def _solver_stats(path: Path, method: str) -> tuple[int | None, float | None]:
+    """Iterations and ms per iteration of the TrNN iterations for one repair, in-process."""
+    from .solvers import trnn as trnn_module
+
+    calls: list[tuple[int, float]] = []
+    original = trnn_module.trnn
+
+    def recording(*args, **kwargs):
+        started = time.perf_counter()
+        result = original(*args, **kwargs)
+        calls.append((result.iterations, time.perf_counter() - started))
+        return result
+
+    trnn_module.trnn = recording
+    try:
+        from .pipeline import RepairOptions, repair
+
+        repair(formats.read(path), RepairOptions(method=method))
+    finally:
+        trnn_module.trnn = original
+    iterations = sum(c[0] for c in calls)
+    if not iterations:
+        return None, None
+    return iterations, 1000.0 * sum(c[1] for c in calls) / iterations
+
+
+def _synthetic(frames: int, markers: int, missing: float, seed: int) -> Motion:
+    """A smooth, low-rank-ish clip with ~``missing`` of samples in 20-120-frame gaps."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames) / 120.0
+    k = 8
+    latent = np.sin(2 * np.pi * rng.uniform(0.2, 2.5, (k, 1)) * t + rng.uniform(0, 6, (k, 1)))
+    data = 80 * rng.standard_normal((3 * markers, k)) @ latent
+    data += 400 * rng.standard_normal((3 * markers, 1))
+    data += rng.standard_normal(data.shape) * 0.3
+    positions = data.reshape(markers, 3, frames).transpose(2, 0, 1)
+    observed = np.ones((frames, markers), bool)
+    budget = int(missing * frames * markers)
+    while budget > 0:
+        length = int(rng.integers(20, 121))
+        start = int(rng.integers(1, frames - length - 1))
+        observed[start:start + length, int(rng.integers(markers))] = False
+        budget -= length
+    labels = tuple(f"M{j:03d}" for j in range(markers))
+    return Motion(positions, observed, labels, 120.0, "mm")
+
+
+def run_speed(runs: int = 5, quick: bool = False, compare: bool = True) -> list[SpeedRow]:
+    """Run the speed cases; clips that need ../shared/data are skipped when it is absent."""
+    rows: list[SpeedRow] = []
+    with tempfile.TemporaryDirectory(prefix="mocapfill-bench-") as tmp:
+        work = Path(tmp)
+        walls, rss = time_command(_cli() + ["--help"], runs)
+        rows.append(SpeedRow("mocapfill --help", "-", 0, 0, runs, min(walls),
+                             statistics.median(walls), max(walls), rss, target_s=0.3))
+        cases: list[tuple[str, Path, float | None]] = []
+        for name, target in (("85_12", 1.0), ("85_02", 0.4)):
+            clip = SHARED_DATA / "cmu" / f"{name}.c3d"
+            if not clip.exists():
+                rows.append(SpeedRow(f"{name} ml40", "trnn", 0, 0, 0, np.nan, np.nan, np.nan,
+                                     np.nan, notes=["skipped: ../shared/data absent"]))
+                continue
+            gapped = work / f"{name}_ml40.c3d"
+            formats.write(simulate_gaps(formats.read(clip), ml=40, seed=1), gapped)
+            cases.append((f"cmu/{name}.c3d simulate --ml 40 --seed 1", gapped, target))
+        if not quick:
+            long_clip = work / "synthetic_216000x41.npz"
+            formats.write(_synthetic(216_000, 41, 0.05, 1), long_clip)
+            cases.append(("synthetic 41 markers x 216000 frames, 5% gaps", long_clip, 60.0))
+            wide = work / "synthetic_10000x300.npz"
+            formats.write(_synthetic(10_000, 300, 0.05, 2), wide)
+            cases.append(("synthetic 300 markers x 10000 frames, 5% gaps", wide, None))
+        methods = ["trnn"] + (["trnn-paper", "tsmc"] if compare else [])
+        for label, path, target in cases:
+            motion = formats.read(path)
+            case_runs = runs if motion.n_frames <= 20_000 else 1
+            for method in methods:
+                if method != "trnn" and motion.n_frames > 20_000:
+                    continue  # the comparison methods are minutes-long on 30-minute clips
+                out = work / f"out{path.suffix}"
+                walls, rss = time_command(
+                    _cli() + ["repair", str(path), str(out), "--method", method],
+                    case_runs if method == "trnn" else 1)
+                row = SpeedRow(label, method, motion.n_frames, motion.n_markers, len(walls),
+                               min(walls), statistics.median(walls), max(walls), rss,
+                               target_s=target if method == "trnn" else None)
+                if method in ("trnn", "trnn-paper") and motion.n_frames <= 20_000:
+                    row.iterations, row.ms_per_iteration = _solver_stats(path, method)
+                    row.floor_ms_per_iteration = iteration_floor_ms(3 * motion.n_markers,
+                                                                    motion.n_frames)
+                rows.append(row)
+    return rows
+
+
+def format_speed_table(rows: list[SpeedRow]) -> str:
+    """A markdown table of the rows."""
+    def f(value, digits=3):
+        if value is None or (isinstance(value, float) and np.isnan(value)):
+            return "-"
+        return f"{value:.{digits}f}" if isinstance(value, float) else str(value)
+
+    lines = ["| case | method | wall min / median / max (s) | target (s) | iterations | "
+             "ms/iter | floor ms/iter | peak RSS (MB) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r.case} | {r.method} | {f(r.wall_min_s)} / {f(r.wall_median_s)} / "
+                     f"{f(r.wall_max_s)} | {f(r.target_s, 1)} | {f(r.iterations)} | "
+                     f"{f(r.ms_per_iteration, 1)} | {f(r.floor_ms_per_iteration, 1)} | "
+                     f"{f(r.peak_rss_mb, 0)} |" + (f" {'; '.join(r.notes)}" if r.notes else ""))
+    return "\n".join(lines)
+
+
+def rows_as_dicts(rows: list[SpeedRow]) -> list[dict]:
+    return [asdict(r) for r in rows]
