@@ -1,7 +1,7 @@
 """The speed benchmark's machinery (timings themselves are never asserted)."""
 import numpy as np
 
-from mocapfill.bench_speed import _synthetic, format_speed_table, iteration_floor_ms, SpeedRow
+from mocapfill.bench_speed import SpeedRow, _synthetic, format_speed_table, iteration_floor_ms
 
 
 def test_synthetic_long_clip_has_the_requested_shape_and_gap_share():
