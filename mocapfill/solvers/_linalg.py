@@ -20,6 +20,17 @@ import numpy as np
 from scipy.fft import dct, idct
 
 
+def as_problem(matrix: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Validate a solver's inputs: float64 (m, n) data and a bool mask of the same shape."""
+    matrix = np.asarray(matrix, dtype=np.float64)
+    observed = np.asarray(observed, dtype=bool)
+    if matrix.ndim != 2 or observed.shape != matrix.shape:
+        raise ValueError(
+            f"matrix and observed must be 2-D of equal shape, got {matrix.shape} and "
+            f"{observed.shape}")
+    return matrix, observed
+
+
 def soft_threshold(x: np.ndarray, tau: float | np.ndarray) -> np.ndarray:
     """``sign(x)·max(|x| - tau, 0)`` entrywise (a new array)."""
     x = np.asarray(x, dtype=np.float64)

@@ -27,24 +27,15 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import CubicSpline, PchipInterpolator
 
-from ._linalg import linear_fill
+from ._linalg import as_problem, linear_fill
 
 __all__ = ["linear", "pchip", "spline"]
 
 
-def _check(matrix: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    matrix = np.asarray(matrix, dtype=np.float64)
-    observed = np.asarray(observed, dtype=bool)
-    if matrix.ndim != 2 or observed.shape != matrix.shape:
-        raise ValueError(
-            f"matrix and observed must be 2-D of equal shape, got {matrix.shape} and "
-            f"{observed.shape}")
-    return matrix, observed
-
 
 def _interpolate(matrix, observed, make) -> np.ndarray:
     """Fill every row's interior gaps with ``make(t_obs, y_obs)(t)``; hold the ends."""
-    matrix, observed = _check(matrix, observed)
+    matrix, observed = as_problem(matrix, observed)
     out = linear_fill(matrix, observed)  # ends held, empty rows 0, interior linear
     t = np.arange(matrix.shape[1], dtype=np.float64)
     for row in range(matrix.shape[0]):
@@ -69,7 +60,7 @@ def linear(matrix: np.ndarray, observed: np.ndarray, *, rate: float | None = Non
 
     ``rate`` and ``seed`` (shared pipeline options) are accepted and ignored.
     """
-    matrix, observed = _check(matrix, observed)
+    matrix, observed = as_problem(matrix, observed)
     return linear_fill(matrix, observed)
 
 

@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._linalg import linear_fill
+from ._linalg import as_problem, linear_fill
 
 __all__ = ["complete"]
 
@@ -192,10 +192,7 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, weight_scale: float = 
     rate, seed
         Shared pipeline options, ignored.
     """
-    matrix = np.asarray(matrix, dtype=np.float64)
-    observed = np.asarray(observed, dtype=bool)
-    if matrix.ndim != 2 or observed.shape != matrix.shape:
-        raise ValueError("matrix and observed must be 2-D arrays of equal shape")
+    matrix, observed = as_problem(matrix, observed)
     m, n = matrix.shape
     if m % 3:
         raise ValueError(f"rows must be x, y, z of each marker (m divisible by 3), got m={m}")

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._linalg import soft_threshold, svt
+from ._linalg import as_problem, soft_threshold, svt
 
 __all__ = ["ialm", "partial_svt", "psvt"]
 
@@ -37,10 +37,7 @@ def partial_svt(x: np.ndarray, tau: float, keep: int) -> np.ndarray:
 
 
 def _alm(matrix, observed, prox, lam, mu0, rho, mu_max_factor, tol, max_iter):
-    matrix = np.asarray(matrix, dtype=np.float64)
-    observed = np.asarray(observed, dtype=bool)
-    if matrix.ndim != 2 or observed.shape != matrix.shape:
-        raise ValueError("matrix and observed must be 2-D arrays of equal shape")
+    matrix, observed = as_problem(matrix, observed)
     m, n = matrix.shape
     D = np.where(observed, matrix, 0.0)
     norm_fro = float(np.linalg.norm(D))

@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from ._linalg import as_problem
 from ._linalg import svt as shrink
 
 __all__ = ["complete"]
@@ -55,10 +56,7 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, tau: float | None = No
     -------
     The last iterate Xᵏ, a new finite (m, n) array (observed entries are only approximated).
     """
-    matrix = np.asarray(matrix, dtype=np.float64)
-    observed = np.asarray(observed, dtype=bool)
-    if matrix.ndim != 2 or observed.shape != matrix.shape:
-        raise ValueError("matrix and observed must be 2-D arrays of equal shape")
+    matrix, observed = as_problem(matrix, observed)
     m, n = matrix.shape
     count = int(observed.sum())
     if count == 0:

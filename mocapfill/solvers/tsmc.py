@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._linalg import linear_fill, soft_threshold, svt, temporal_solve
+from ._linalg import as_problem, linear_fill, soft_threshold, svt, temporal_solve
 
 __all__ = ["complete"]
 
@@ -60,10 +60,7 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, lam: float | None = No
     rate, seed
         Shared pipeline options, ignored.
     """
-    matrix = np.asarray(matrix, dtype=np.float64)
-    observed = np.asarray(observed, dtype=bool)
-    if matrix.ndim != 2 or observed.shape != matrix.shape:
-        raise ValueError("matrix and observed must be 2-D arrays of equal shape")
+    matrix, observed = as_problem(matrix, observed)
     if mu < 0 or rho < 1 or eta0 <= 0:
         raise ValueError("need mu >= 0, rho >= 1, eta0 > 0")
     m, n = matrix.shape
