@@ -349,3 +349,17 @@ def patch_tokens(line: str, cells: dict[int, str]) -> str:
             last = match.end()
     pieces.append(line[last:])
     return "".join(pieces)
+
+
+def motion_with_channels(motion: Motion, source, values: np.ndarray,
+                         observed: np.ndarray) -> Motion:
+    """A copy of ``motion`` driven by a new channel matrix (shared by BVH and AMC).
+
+    ``source`` is the format's handle (it has ``state`` and ``scale``). Cells observed
+    before keep their stored value; newly observed cells take ``values`` wrapped into the
+    range their channel used; positions are recomputed by FK and the returned Motion's
+    source carries the new matrix for the format's writer.
+    """
+    source = replace(source, state=source.state.updated(values, observed))
+    positions, point_observed = source.state.points()
+    return motion.with_positions(positions * source.scale, point_observed).replace(source=source)

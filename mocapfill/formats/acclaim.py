@@ -38,7 +38,7 @@ its frame gets a new line at the end of that frame.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -46,7 +46,7 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import FormatError, ParameterError
 from ..motion import Motion
-from ..skeleton import ChannelState, Skeleton, patch_tokens, positions_edited
+from ..skeleton import ChannelState, Skeleton, motion_with_channels, patch_tokens, positions_edited
 
 INCH_IN = {"in": 1.0, "mm": 25.4, "cm": 2.54, "m": 0.0254}
 NOT_DOF_CHANNELS = ("tx", "ty", "tz", "l")
@@ -452,10 +452,7 @@ def with_channels(motion: Motion, values: np.ndarray, observed: np.ndarray) -> M
     wrapped into the range their channel used; positions are recomputed by FK and the
     source carries the new matrix for :func:`write`.
     """
-    source = _source(motion)
-    source = replace(source, state=source.state.updated(values, observed))
-    positions, point_observed = source.state.points()
-    return motion.with_positions(positions * source.scale, point_observed).replace(source=source)
+    return motion_with_channels(motion, _source(motion), values, observed)
 
 
 # --------------------------------------------------------------------------- writing

@@ -37,14 +37,14 @@ Writing
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import FormatError
 from ..motion import Motion
-from ..skeleton import ChannelState, Skeleton, patch_tokens, positions_edited
+from ..skeleton import ChannelState, Skeleton, motion_with_channels, patch_tokens, positions_edited
 
 _TOKEN = re.compile(r"\S+")
 _DECIMALS = re.compile(r"\.(\d+)")
@@ -324,10 +324,7 @@ def with_channels(motion: Motion, values: np.ndarray, observed: np.ndarray) -> M
         ``values`` wrapped into the range their channel used; positions are recomputed by
         FK and the source carries the new matrix for :func:`write`.
     """
-    source = _source(motion)
-    source = replace(source, state=source.state.updated(values, observed))
-    positions, point_observed = source.state.points()
-    return motion.with_positions(positions * source.scale, point_observed).replace(source=source)
+    return motion_with_channels(motion, _source(motion), values, observed)
 
 
 # --------------------------------------------------------------------------- writing
