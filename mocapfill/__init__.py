@@ -27,6 +27,7 @@ _API = {
     "Motion": "motion",
     "MocapfillError": "errors", "FormatError": "errors", "ParameterError": "errors",
     "NothingToRepair": "errors",
+    "repair_many": "batch",
 }
 __all__ = sorted(_API)
 

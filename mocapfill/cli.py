@@ -293,8 +293,11 @@ def _repair_batch(paths, options, *, max_gap_s, out_dir, in_place, force, jobs, 
 
     if gaps_report is not None:
         raise ParameterError("--gaps-report is for one file; a batch writes --report FILE.json")
-    if report_path is not None and report_path.suffix.lower() != ".json":
-        raise ParameterError(f"--report must name a .json file, got {report_path}")
+    if report_path is not None and (report_path.suffix.lower() != ".json"
+                                    or not report_path.parent.is_dir()):
+        # Checked now, not after hours of repairs.
+        raise ParameterError(f"--report must name a .json file in an existing folder, got "
+                             f"{report_path}")
     progress = _BatchProgress()
     try:
         report = repair_many(paths, out_dir, options=options, jobs=jobs, scheduler=scheduler,

@@ -1,0 +1,655 @@
+"""Batch repair of many files: discovery, output planning, local or Dask execution, report.
+
+``repair_many`` is the entry point. It plans one ``FileJob`` per input (where its output
+goes, or that it is skipped because its output is newer than it), runs ``repair_file`` on
+every job — in this process, in a pool of local worker processes, or on a
+``dask.distributed`` cluster — and returns a ``BatchReport``.
+
+What each status means:
+
+- ``repaired``: at least one gap was filled and the output written.
+- ``unchanged``: nothing was filled — the clip has no gaps, the gap policy left all of
+  them (``--max-gap``, ``--ends leave``, ...), or it holds nothing fillable. With an output
+  folder the output is still written (a faithful copy, or a conversion with ``suffix``)
+  so the mirrored tree is complete and a resumed batch skips it; in place, nothing is
+  written.
+- ``skipped``: the output exists and is newer than the input (``force`` redoes it).
+- ``failed``: the file could not be read, repaired or written; ``reason`` says why. One
+  failure never stops the batch.
+
+Like the rest of the core this module never prints and never exits; numpy and the format
+modules are imported inside the per-file function so worker processes can limit BLAS
+threads before numpy loads.
+"""
+from __future__ import annotations
+
+import glob
+import os
+import shutil
+import tempfile
+import time
+from collections.abc import Callable, Iterable, Sequence
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+from .errors import FormatError, MocapfillError, NothingToRepair, ParameterError
+
+REPAIRED = "repaired"
+UNCHANGED = "unchanged"
+SKIPPED = "skipped"
+FAILED = "failed"
+STATUSES = (REPAIRED, UNCHANGED, SKIPPED, FAILED)
+
+EXIT_OK = 0
+EXIT_CHECK_FAILED = 1
+EXIT_FAILED = 123
+
+# Too generic to pick up while walking a folder (README.txt, notes.txt, ...); a .txt named
+# explicitly is still read as CSV.
+NOT_DISCOVERED = frozenset({".txt"})
+
+# Environment a local worker sets before numpy loads: one BLAS thread per process, so N
+# workers on N cores do not each start N threads and fight over the cores.
+SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+                   "MKL_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1",
+                   "NUMEXPR_NUM_THREADS": "1"}
+
+DASK_MISSING = ("--scheduler needs dask.distributed, which is not installed: "
+                "pip install mocapfill[dask]")
+
+
+# ---------------------------------------------------------------- records
+
+
+@dataclass(frozen=True)
+class FileJob:
+    """One file of a batch: where it is read, where it is written and how it is repaired.
+
+    Picklable and small, so it travels to worker processes and Dask workers, which read
+    and write the files themselves.
+    """
+
+    input: Path
+    output: Path
+    options: object = None  # RepairOptions | None; typed loosely to keep imports lazy
+    zero_is_missing: str = "auto"
+    max_gap_s: float | None = None
+    in_place: bool = False
+
+
+@dataclass(frozen=True)
+class FileRecord:
+    """What happened to one file."""
+
+    input: str
+    output: str
+    status: str
+    reason: str = ""
+    gaps_filled: int = 0
+    gaps_left: int = 0
+    seconds: float = 0.0
+    frames: int = 0
+
+
+@dataclass
+class BatchReport:
+    """Per-file records of a batch, its counts, its summary line and its exit code."""
+
+    records: list[FileRecord] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def count(self, status: str) -> int:
+        return sum(r.status == status for r in self.records)
+
+    @property
+    def repaired(self) -> int:
+        return self.count(REPAIRED)
+
+    @property
+    def unchanged(self) -> int:
+        return self.count(UNCHANGED)
+
+    @property
+    def skipped(self) -> int:
+        return self.count(SKIPPED)
+
+    @property
+    def failed(self) -> int:
+        return self.count(FAILED)
+
+    @property
+    def failures(self) -> list[FileRecord]:
+        return [r for r in self.records if r.status == FAILED]
+
+    @property
+    def frames(self) -> int:
+        """Frames of the files processed (repaired or unchanged) in this run."""
+        return sum(r.frames for r in self.records if r.status in (REPAIRED, UNCHANGED))
+
+    @property
+    def gaps_left(self) -> int:
+        return sum(r.gaps_left for r in self.records)
+
+    def exit_code(self, check: bool = False) -> int:
+        """0 all ok; 123 some file failed; 1 with ``check`` when gaps were left open."""
+        if self.failed:
+            return EXIT_FAILED
+        if check and self.gaps_left:
+            return EXIT_CHECK_FAILED
+        return EXIT_OK
+
+    def summary(self) -> str:
+        """'412 repaired, 3 unchanged, 2 failed in 38.1 s' (zero counts after the first
+        are left out)."""
+        parts = [f"{self.repaired} repaired"]
+        parts += [f"{self.count(s)} {s}" for s in (UNCHANGED, SKIPPED, FAILED) if self.count(s)]
+        return f"{', '.join(parts)} in {self.seconds:.1f} s"
+
+    def as_dict(self) -> dict:
+        processed = self.repaired + self.unchanged
+        return {
+            "summary": {
+                "files": len(self.records),
+                **{status: self.count(status) for status in STATUSES},
+                "gaps_filled": sum(r.gaps_filled for r in self.records),
+                "gaps_left": self.gaps_left,
+                "frames": self.frames,
+                "seconds": round(self.seconds, 3),
+                "files_per_s": round(processed / self.seconds, 3) if self.seconds else None,
+                "frames_per_s": round(self.frames / self.seconds, 1) if self.seconds else None,
+            },
+            "files": [asdict(r) for r in self.records],
+        }
+
+    def write_json(self, path: str | os.PathLike) -> None:
+        """Write the report (summary and one entry per file) as JSON."""
+        import json
+
+        path = Path(path)
+        if path.suffix.lower() != ".json":
+            raise FormatError(path, "the batch report must be a .json file", exit_code=2)
+        path.write_text(json.dumps(self.as_dict(), indent=1) + "\n")
+
+
+class BatchInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a batch. ``report`` holds the files finished before it; no output is
+    left half-written and the workers are stopped."""
+
+    def __init__(self, report: BatchReport):
+        super().__init__()
+        self.report = report
+
+
+# ---------------------------------------------------------------- discovery and planning
+
+
+def _known_suffixes() -> dict[str, str]:
+    from .formats import FORMATS
+
+    return FORMATS
+
+
+def _is_motion_file(path: Path) -> bool:
+    suffix = path.suffix.lower()
+    return (suffix in _known_suffixes() and suffix not in NOT_DISCOVERED
+            and not path.name.startswith(".") and path.is_file())
+
+
+def _walk(directory: Path, exclude: Path | None) -> list[Path]:
+    """Motion files under ``directory``, recursively, hidden folders and ``exclude`` left out."""
+    found = []
+    for root, dirs, files in os.walk(directory):
+        root_path = Path(root)
+        dirs[:] = sorted(d for d in dirs if not d.startswith(".")
+                         and not _same_path(root_path / d, exclude))
+        found += [root_path / f for f in sorted(files) if _is_motion_file(root_path / f)]
+    return found
+
+
+def _same_path(a: Path, b: Path | None) -> bool:
+    return b is not None and a.exists() and b.exists() and os.path.samefile(a, b)
+
+
+def _glob_base(pattern: str) -> Path:
+    """The folder part of a glob before its first wildcard: 'data/*/x*.c3d' -> 'data'."""
+    parts = Path(pattern).parts
+    fixed = []
+    for part in parts[:-1]:
+        if glob.has_magic(part):
+            break
+        fixed.append(part)
+    return Path(*fixed) if fixed else Path(".")
+
+
+def discover(paths: Iterable[str | os.PathLike],
+             exclude: str | os.PathLike | None = None) -> list[tuple[Path, Path]]:
+    """Expand files, folders and globs into ``(file, relative output path)`` pairs.
+
+    Folders are walked recursively for known suffixes (case-insensitive; ``.txt`` only when
+    named explicitly); the output path mirrors the file's place under the folder. A glob's
+    matches mirror their place under the glob's fixed leading folder; a plain file keeps
+    just its name. Hidden files and folders, and the folder ``exclude`` (the output folder,
+    when it lies inside an input folder), are never picked up. A file reached twice is
+    listed once.
+
+    Raises
+    ------
+    ParameterError
+        A path that does not exist or a glob that matches nothing.
+    FormatError
+        A file named explicitly whose suffix is not a motion format (exit code 2).
+    """
+    from .formats import format_module
+
+    exclude_path = None if exclude is None else Path(exclude)
+    pairs: list[tuple[Path, Path]] = []
+    for given in paths:
+        text = os.fspath(given)
+        path = Path(text)
+        if path.is_dir():
+            pairs += [(f, f.relative_to(path)) for f in _walk(path, exclude_path)]
+        elif path.exists():
+            if path.suffix.lower() not in _known_suffixes():
+                format_module(path)  # raises the helpful "unknown / wrong suffix" error
+            pairs.append((path, Path(path.name)))
+        elif glob.has_magic(text):
+            matches = sorted(Path(m) for m in glob.glob(text, recursive=True))
+            if not matches:
+                raise ParameterError(f"{text}: no file matches this pattern")
+            base = _glob_base(text)
+            for match in matches:
+                if match.is_dir():
+                    pairs += [(f, f.relative_to(base)) for f in _walk(match, exclude_path)]
+                elif _is_motion_file(match):
+                    pairs.append((match, match.relative_to(base)))
+        else:
+            raise ParameterError(f"{text}: no such file or folder")
+    unique: dict[Path, tuple[Path, Path]] = {}
+    for file, relative in pairs:
+        unique.setdefault(file.resolve(), (file, relative))
+    return list(unique.values())
+
+
+def _is_up_to_date(source: Path, output: Path) -> bool:
+    # Strictly newer: on a coarse-clock file system an equal time could hide an input
+    # changed after its output was written; redoing a file is safe, skipping it is not.
+    try:
+        return output.stat().st_mtime_ns > source.stat().st_mtime_ns
+    except FileNotFoundError:
+        return False
+
+
+def plan(paths: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None = None, *,
+         options=None, in_place: bool = False, force: bool = False,
+         zero_is_missing: str = "auto", max_gap_s: float | None = None,
+         suffix: str | None = None) -> tuple[list[FileJob], list[FileRecord]]:
+    """Jobs to run and records of the files skipped as up to date.
+
+    Raises ``ParameterError`` for a batch that cannot be planned safely: neither or both of
+    ``out_dir`` and ``in_place``, an output that would overwrite an input, two inputs
+    mapped to the same output.
+    """
+    if (out_dir is None) == (not in_place):
+        raise ParameterError("give an output folder or in_place=True (not both)")
+    if suffix is not None:
+        suffix = suffix if suffix.startswith(".") else f".{suffix}"
+        if in_place:
+            raise ParameterError("--suffix changes the output format; it cannot be used in place")
+        if suffix.lower() not in _known_suffixes():
+            raise ParameterError(f"--suffix {suffix}: unknown format; known: "
+                                 f"{', '.join(sorted(_known_suffixes()))}")
+    out_root = None if out_dir is None else Path(out_dir)
+    found = discover(paths, exclude=out_root)
+    inputs = {file.resolve() for file, _ in found}
+    jobs: list[FileJob] = []
+    skipped: list[FileRecord] = []
+    claimed: dict[Path, Path] = {}
+    for file, relative in found:
+        if in_place:
+            output = file
+        else:
+            output = out_root / relative
+            if suffix is not None:
+                output = output.with_suffix(suffix)
+            key = output.resolve()
+            if key in inputs:
+                raise ParameterError(f"{output} is an input; refusing to overwrite it "
+                                     "(choose another output folder, or --in-place)")
+            if key in claimed:
+                raise ParameterError(f"{claimed[key]} and {file} would both be written to "
+                                     f"{output}; pass their common folder instead")
+            claimed[key] = file
+            if not force and _is_up_to_date(file, output):
+                skipped.append(FileRecord(str(file), str(output), SKIPPED,
+                                          "output is newer than input"))
+                continue
+        jobs.append(FileJob(file, output, options, zero_is_missing, max_gap_s, in_place))
+    return jobs, skipped
+
+
+# ---------------------------------------------------------------- one file
+
+
+def _write_in_place(motion, path: Path) -> None:
+    """Replace ``path`` atomically: write a sibling temp file with the same suffix (through
+    ``formats.write``, itself atomic), keep the input's permissions, rename it over."""
+    from . import formats
+
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".inplace{path.suffix}",
+                               dir=path.parent)
+    os.close(fd)
+    try:
+        formats.write(motion, tmp)
+        shutil.copymode(path, tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _temp_patterns(output: Path) -> list[str]:
+    """Globs of the temporary files ``formats.write`` and ``_write_in_place`` leave beside
+    ``output`` while writing it."""
+    name = glob.escape(output.name)
+    return [f".{name}.*.tmp", f".{name}.*.inplace{glob.escape(output.suffix)}",
+            f"..{name}.*.tmp"]
+
+
+def remove_temp_files(jobs: Iterable[FileJob]) -> None:
+    """Delete temporary files of interrupted writes (a worker killed mid-write)."""
+    for job in jobs:
+        for pattern in _temp_patterns(job.output):
+            for leftover in job.output.parent.glob(pattern):
+                leftover.unlink(missing_ok=True)
+
+
+def _read(job: FileJob):
+    from . import formats
+
+    extra = ({"zero_is_missing": job.zero_is_missing}
+             if job.input.suffix.lower() == ".c3d" else {})
+    return formats.read(job.input, **extra)
+
+
+def _options_for(job: FileJob, rate: float):
+    from .pipeline import RepairOptions
+
+    options = job.options or RepairOptions()
+    if job.max_gap_s is not None:
+        options = replace(options, max_gap_frames=round(job.max_gap_s * rate))
+    return options
+
+
+def repair_file(job: FileJob) -> FileRecord:
+    """Read, repair and write one file; every error becomes a ``failed`` record.
+
+    Runs wherever the batch runs (this process, a local worker, a Dask worker). Ctrl-C
+    (KeyboardInterrupt) and SystemExit propagate; ``formats.write`` removes its temporary
+    file on the way out.
+    """
+    from . import formats
+    from .pipeline import repair
+
+    started = time.perf_counter()
+    frames = 0
+
+    def record(status: str, reason: str = "", filled: int = 0, left: int = 0) -> FileRecord:
+        return FileRecord(str(job.input), str(job.output), status, reason, filled, left,
+                          round(time.perf_counter() - started, 4), frames)
+
+    try:
+        motion = _read(job)
+        frames = motion.n_frames
+        # Made here, not by the planner, so Dask workers create the tree on their side.
+        job.output.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            result = repair(motion, _options_for(job, motion.rate))
+        except NothingToRepair as exc:
+            if not job.in_place:
+                formats.write(motion, job.output)
+            return record(UNCHANGED, str(exc))
+        if result.filled:
+            if job.in_place:
+                _write_in_place(result.motion, job.output)
+            else:
+                formats.write(result.motion, job.output)
+            return record(REPAIRED, _not_filled(result), result.filled, result.left)
+        if not job.in_place:
+            formats.write(result.motion, job.output)
+        reason = f"no gap filled ({_not_filled(result)})" if result.gaps else "no gaps"
+        return record(UNCHANGED, reason, 0, result.left)
+    except FormatError as exc:
+        return record(FAILED, exc.problem)
+    except MocapfillError as exc:
+        return record(FAILED, str(exc))
+    except OSError as exc:
+        name = f"{exc.filename}: " if exc.filename is not None else ""
+        return record(FAILED, f"{name}{exc.strerror or exc}")
+    except Exception as exc:  # noqa: BLE001 - a bug on one file must not stop the other 2,599
+        return record(FAILED, f"{type(exc).__name__}: {exc}")
+
+
+def _not_filled(result) -> str:
+    """'2 left: end; 1 rejected: jump' — the gaps a repair did not fill, by status."""
+    from collections import Counter
+
+    from .pipeline import FILLED
+
+    counts = Counter(o.status for o in result.gaps if o.status != FILLED)
+    return "; ".join(f"{n} {status}" for status, n in sorted(counts.items()))
+
+
+# ---------------------------------------------------------------- runners
+
+Progress = Callable[[int, int, "FileRecord | None"], None]
+
+
+def _single_threaded_worker() -> None:
+    """Initializer of a local worker process: BLAS variables (again, for anything that
+    reads them late), and signal handling."""
+    import signal
+
+    os.environ.update(SINGLE_THREADED)
+    # The parent owns Ctrl-C: it stops the workers itself (SIGTERM, below), so a terminal
+    # Ctrl-C does not print one traceback per worker.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _exit_on_terminate)
+
+
+def _exit_on_terminate(signum, frame) -> None:
+    # SystemExit unwinds through formats.write, which deletes its temporary file.
+    raise SystemExit(128 + signum)
+
+
+@contextmanager
+def _environment(values: dict[str, str]):
+    """Set environment variables for the duration of a block (for child processes)."""
+    saved = {name: os.environ.get(name) for name in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
+def _run_here(jobs: Sequence[FileJob], done: Callable[[FileRecord], None]) -> None:
+    for job in jobs:
+        done(repair_file(job))
+
+
+def _stop_pool(executor) -> None:
+    """Cancel what has not started, stop the workers (SIGTERM, then SIGKILL), wait."""
+    # Taken before shutdown(), which forgets them. (Python 3.14 has terminate_workers().)
+    processes = list((getattr(executor, "_processes", None) or {}).values())
+    executor.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        if process.is_alive():
+            process.terminate()
+    for process in processes:
+        process.join(timeout=5)
+        if process.is_alive():
+            process.kill()
+            process.join()
+
+
+def _run_pool(jobs: Sequence[FileJob], workers: int,
+              done: Callable[[FileRecord], None]) -> None:
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+
+    # spawn, not fork: a fresh interpreter reads the BLAS variables when it loads numpy
+    # (a forked child inherits the parent's BLAS already set up for all cores). The
+    # variables are in the environment the workers are started with — they start during
+    # the submits — because a spawned child re-imports the caller's __main__, which may
+    # import numpy before any initializer runs.
+    executor = ProcessPoolExecutor(max_workers=workers,
+                                   mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_single_threaded_worker)
+    try:
+        with _environment(SINGLE_THREADED):
+            futures = {executor.submit(repair_file, job): job for job in jobs}
+        for future in as_completed(futures):
+            try:
+                record = future.result()
+            except BrokenProcessPool:
+                record = _lost(futures[future], "worker process died (killed or out of memory)")
+            except Exception as exc:  # noqa: BLE001 - e.g. a result that cannot be sent back
+                record = _lost(futures[future], f"{type(exc).__name__}: {exc}")
+            done(record)
+    except BaseException:
+        _stop_pool(executor)
+        raise
+    executor.shutdown(wait=True)
+
+
+def _lost(job: FileJob, reason: str) -> FileRecord:
+    return FileRecord(str(job.input), str(job.output), FAILED, reason)
+
+
+def _run_dask(jobs: Sequence[FileJob], address: str,
+              done: Callable[[FileRecord], None]) -> None:
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise ParameterError(DASK_MISSING) from None
+    try:
+        client = Client(address, timeout="20s")
+    except (OSError, TimeoutError) as exc:
+        raise ParameterError(f"cannot reach the Dask scheduler at {address} ({exc})") from None
+    # Workers see the files through a shared file system: send absolute paths (the
+    # workers' working folder is not ours), never the data.
+    remote = [replace(job, input=job.input.absolute(), output=job.output.absolute())
+              for job in jobs]
+    futures = []
+    try:
+        futures = client.map(repair_file, remote, pure=False)
+        index = {future.key: job for future, job in zip(futures, jobs)}
+        for future in as_completed(futures):
+            job = index[future.key]
+            try:
+                record = future.result()
+            except Exception as exc:  # noqa: BLE001 - KilledWorker, no mocapfill there, ...
+                record = _lost(job, f"Dask: {type(exc).__name__}: {exc}")
+            done(replace(record, input=str(job.input), output=str(job.output)))
+    except BaseException:
+        client.cancel(futures)
+        raise
+    finally:
+        client.close()
+
+
+# ---------------------------------------------------------------- the public entry point
+
+
+def repair_many(paths: Iterable[str | os.PathLike] | str | os.PathLike,
+                out_dir: str | os.PathLike | None = None, *, options=None,
+                jobs: int | None = None, scheduler: str | None = None,
+                in_place: bool = False, force: bool = False, zero_is_missing: str = "auto",
+                max_gap_s: float | None = None, suffix: str | None = None,
+                progress: Progress | None = None) -> BatchReport:
+    """Repair every motion file under ``paths`` into ``out_dir`` (or in place).
+
+    Parameters
+    ----------
+    paths
+        Files, folders (walked recursively for known suffixes) and globs.
+    out_dir
+        Output folder; the input tree is mirrored under it (relative to each folder given,
+        a glob's fixed leading folder, or just the name of a file given directly).
+    options
+        ``RepairOptions`` applied to every file (default: ``RepairOptions()``).
+    jobs
+        Local worker processes (default: all cores), each with single-threaded BLAS;
+        1 runs in this process.
+    scheduler
+        Address of a ``dask.distributed`` scheduler (``"tcp://host:8786"``); the workers
+        read and write the files, which they must see at the same paths.
+    in_place
+        Replace each input atomically instead of writing to ``out_dir``.
+    force
+        Redo files whose output is newer than their input (skipped otherwise).
+    zero_is_missing
+        C3D only: "auto", "on" or "off" (see ``mocapfill.formats.c3d``).
+    max_gap_s
+        Leave gaps longer than this many seconds, converted with each file's own rate
+        (overrides ``options.max_gap_frames``).
+    suffix
+        Output format for every file (".c3d", ".csv", ...); default: the input's own.
+    progress
+        Called as ``progress(done, total, record)``: once with ``(0, total, None)`` before
+        the first file, then after each file (skipped files are not counted in ``total``).
+
+    Returns
+    -------
+    BatchReport
+        One record per file, sorted by input path; ``exit_code()`` is 0 or 123.
+
+    Raises
+    ------
+    ParameterError
+        Nothing safe to plan (see ``plan``), bad ``jobs``, Dask missing or unreachable.
+    BatchInterrupted
+        Ctrl-C; carries the report of the files finished so far.
+    """
+    started = time.perf_counter()
+    if isinstance(paths, (str, os.PathLike)):
+        paths = [paths]
+    if jobs is not None and jobs < 1:
+        raise ParameterError(f"--jobs must be ≥ 1, got {jobs}")
+    todo, skipped = plan(paths, out_dir, options=options, in_place=in_place, force=force,
+                         zero_is_missing=zero_is_missing, max_gap_s=max_gap_s, suffix=suffix)
+    finished: list[FileRecord] = []
+    report = BatchReport()
+
+    def done(record: FileRecord) -> None:
+        finished.append(record)
+        if progress is not None:
+            progress(len(finished), len(todo), record)
+
+    def collect() -> BatchReport:
+        report.records = sorted(skipped + finished, key=lambda r: r.input)
+        report.seconds = time.perf_counter() - started
+        return report
+
+    if progress is not None:
+        progress(0, len(todo), None)
+    workers = min(jobs or os.cpu_count() or 1, len(todo))
+    try:
+        if scheduler is not None:
+            _run_dask(todo, scheduler, done)
+        elif workers <= 1:
+            _run_here(todo, done)
+        else:
+            _run_pool(todo, workers, done)
+    except KeyboardInterrupt:
+        finished_inputs = {r.input for r in finished}
+        remove_temp_files(j for j in todo if str(j.input) not in finished_inputs)
+        raise BatchInterrupted(collect()) from None
+    return collect()

@@ -1,0 +1,242 @@
+"""Batch repair: discovery, mirrored outputs, resume, failures, report, exit codes, Dask."""
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+import re
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import mocapfill
+from mocapfill import batch, formats
+from mocapfill.cli import main
+from mocapfill.pipeline import RepairOptions
+
+from .helpers import smooth_clip, with_gap
+
+# Linear interpolation: fast, and its fills always pass the pipeline's jump check, so every
+# gapped file is "repaired" whatever the solver defaults are tuned to.
+LINEAR = ("--method", "linear")
+N_GAPPED = 20
+SUMMARY = re.compile(r"^\d+ repaired(, \d+ (unchanged|skipped|failed))* in \d+\.\d s$")
+
+
+def _clip_tree(root: Path, corrupt: bool = True) -> dict[str, Path]:
+    """20 gapped clips in nested folders, one gap-free clip and (optionally) a corrupt one.
+
+    Input times are set a minute in the past so outputs are clearly newer (resume).
+    """
+    files = {}
+    for i in range(N_GAPPED):
+        folder = root / f"subject{i % 3}" / ("walk" if i % 2 else "run")
+        folder.mkdir(parents=True, exist_ok=True)
+        files[f"gapped{i}"] = folder / f"trial{i:02d}.npz"
+        formats.write(with_gap(smooth_clip(240, 8, rate=480.0, seed=i), i % 8, 100, 120),
+                      files[f"gapped{i}"])
+    files["complete"] = root / "complete.npz"
+    formats.write(smooth_clip(240, 8, seed=99), files["complete"])
+    if corrupt:
+        files["corrupt"] = root / "subject1" / "corrupt.npz"
+        files["corrupt"].write_bytes(b"PK\x03\x04 truncated archive")
+    (root / "notes.txt").write_text("not a motion file")
+    past = time.time() - 60
+    for path in files.values():
+        os.utime(path, (past, past))
+    return files
+
+
+@pytest.fixture
+def tree(tmp_path):
+    return tmp_path / "data", _clip_tree(tmp_path / "data")
+
+
+@pytest.fixture
+def clean_tree(tmp_path):
+    return tmp_path / "data", _clip_tree(tmp_path / "data", corrupt=False)
+
+
+def run(*args):
+    return CliRunner().invoke(main, ["repair", *[str(a) for a in args]])
+
+
+def _report(path: Path) -> dict:
+    return json.loads(path.read_text())
+
+
+def _assert_mirrored_and_faithful(root: Path, out: Path, files: dict[str, Path]) -> None:
+    for key, source in files.items():
+        target = out / source.relative_to(root)
+        if key == "corrupt":
+            assert not target.exists()
+            continue
+        before, after = formats.read(source), formats.read(target)
+        assert after.observed.all(), target
+        assert np.array_equal(after.positions[before.observed],
+                              before.positions[before.observed]), target
+    assert not list(out.rglob(".*")), "temporary files left behind"
+
+
+def _assert_batch_outcome(root: Path, out: Path, files, result, report_path: Path) -> None:
+    assert result.exit_code == 123, result.output
+    _assert_mirrored_and_faithful(root, out, files)
+    report = _report(report_path)
+    counts = ("files", "repaired", "unchanged", "skipped", "failed")
+    assert [report["summary"][k] for k in counts] == [22, 20, 1, 0, 1]
+    by_input = {Path(r["input"]).name: r for r in report["files"]}
+    assert by_input["corrupt.npz"]["status"] == "failed"
+    assert "corrupt.npz" not in by_input["corrupt.npz"]["reason"]  # the path is its own field
+    assert by_input["corrupt.npz"]["reason"]
+    assert by_input["complete.npz"] == by_input["complete.npz"] | {
+        "status": "unchanged", "reason": "no gaps", "gaps_filled": 0, "frames": 240}
+    assert by_input["trial07.npz"]["gaps_filled"] == 1
+    assert by_input["trial07.npz"]["gaps_left"] == 0
+    assert by_input["trial07.npz"]["seconds"] > 0
+    lines = result.stderr.strip().splitlines()
+    assert lines[0].startswith("mocapfill: error: ") and "corrupt.npz" in lines[0]
+    assert SUMMARY.match(lines[-1]) and lines[-1].startswith("20 repaired, 1 unchanged, 1 failed")
+
+
+def test_local_pool_mirrors_the_tree_and_reports_the_corrupt_file(tree, tmp_path):
+    root, files = tree
+    before = {p: p.read_bytes() for p in files.values()}
+    result = run(root, "-o", tmp_path / "out", "-j", "2", "--report", tmp_path / "r.json",
+                 *LINEAR)
+    _assert_batch_outcome(root, tmp_path / "out", files, result, tmp_path / "r.json")
+    assert not (tmp_path / "out" / "notes.txt").exists()
+    assert {p: p.read_bytes() for p in files.values()} == before
+
+
+def test_dask_local_cluster_runs_the_same_batch(tree, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    root, files = tree
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        result = run(root, "-o", tmp_path / "out", "--scheduler", cluster.scheduler_address,
+                     "--report", tmp_path / "r.json", *LINEAR)
+    _assert_batch_outcome(root, tmp_path / "out", files, result, tmp_path / "r.json")
+
+
+def test_exit_code_is_0_when_no_file_fails(clean_tree, tmp_path):
+    root, _ = clean_tree
+    result = run(root, "-o", tmp_path / "out", "-j", "1", *LINEAR)
+    assert result.exit_code == 0, result.output
+    assert result.stderr.strip().splitlines() == [result.stderr.strip()]  # one summary line
+    assert result.stderr.startswith("20 repaired, 1 unchanged in ")
+
+
+def test_rerun_skips_up_to_date_outputs_and_redoes_changed_inputs(clean_tree, tmp_path):
+    root, files = clean_tree
+    out = tmp_path / "out"
+    assert run(root, "-o", out, "-j", "1", *LINEAR).exit_code == 0
+    files["gapped3"].touch()  # the input changed after its output was written
+    result = run(root, "-o", out, "-j", "1", "--report", tmp_path / "r.json", *LINEAR)
+    assert result.exit_code == 0
+    statuses = {Path(r["input"]).name: r["status"] for r in _report(tmp_path / "r.json")["files"]}
+    assert statuses.pop("trial03.npz") == "repaired"
+    assert set(statuses.values()) == {"skipped"}
+
+
+def test_force_redoes_up_to_date_outputs(clean_tree, tmp_path):
+    root, _ = clean_tree
+    out = tmp_path / "out"
+    run(root, "-o", out, "-j", "1", *LINEAR)
+    result = run(root, "-o", out, "-j", "1", "--force", *LINEAR)
+    assert result.stderr.startswith("20 repaired, 1 unchanged in ")
+
+
+def test_output_folder_inside_the_input_folder_is_not_scanned(clean_tree):
+    root, _ = clean_tree
+    run(root, "-o", root / "repaired", "-j", "1", *LINEAR)
+    again = run(root, "-o", root / "repaired", "-j", "1", *LINEAR)
+    assert again.stderr.startswith("0 repaired, 21 skipped in ")
+
+
+def test_refuses_to_write_outputs_over_inputs_without_in_place(clean_tree):
+    root, files = clean_tree
+    before = files["gapped0"].read_bytes()
+    result = run(root, "-o", root, *LINEAR)
+    assert result.exit_code == 2
+    assert "refusing to overwrite" in result.stderr
+    assert files["gapped0"].read_bytes() == before
+
+
+def test_in_place_repairs_inputs_atomically_and_leaves_complete_files_untouched(clean_tree):
+    root, files = clean_tree
+    untouched = files["complete"].stat().st_mtime_ns
+    result = run(root, "--in-place", "-j", "2", *LINEAR)
+    assert result.exit_code == 0, result.output
+    assert formats.read(files["gapped5"]).observed.all()
+    assert files["complete"].stat().st_mtime_ns == untouched
+    assert not list(root.rglob(".*"))
+
+
+def test_globs_mirror_the_tree_under_their_fixed_folder(clean_tree, tmp_path):
+    root, _ = clean_tree
+    result = run(f"{root}/subject*/walk/*.npz", "-o", tmp_path / "out", "-j", "1", *LINEAR)
+    assert result.exit_code == 0, result.output
+    written = sorted(p.relative_to(tmp_path / "out").as_posix()
+                     for p in (tmp_path / "out").rglob("*.npz"))
+    assert written == sorted(p.relative_to(root).as_posix()
+                             for p in root.glob("subject*/walk/*.npz"))
+    assert len(written) == N_GAPPED // 2
+
+
+@pytest.mark.parametrize("args, words", [
+    (["a.npz", "b.npz", "--jobs", "2"], "--jobs apply to batches"),
+    (["a.npz", "b.npz", "c.npz"], "got 3 path(s)"),
+    (["missing_folder", "-o", "out"], "no such file or folder"),
+    (["x.npz", "-o", "out", "--in-place"], "not both"),
+    (["x.npz", "-o", "out", "--gaps-report", "g.csv"], "--report FILE.json"),
+])
+def test_batch_usage_errors_exit_2_with_one_line(tmp_path, monkeypatch, args, words):
+    monkeypatch.chdir(tmp_path)
+    formats.write(smooth_clip(50, 3), tmp_path / "x.npz")
+    result = run(*args)
+    assert result.exit_code == 2
+    assert words in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_repair_many_from_python(tree, tmp_path):
+    root, _ = tree
+    calls = []
+    report = mocapfill.repair_many(
+        [root], tmp_path / "out", options=RepairOptions(method="linear"), jobs=1,
+        progress=lambda done, total, record: calls.append((done, total, record)))
+    assert (report.repaired, report.unchanged, report.skipped, report.failed) == (20, 1, 0, 1)
+    assert report.exit_code() == 123
+    assert report.summary().startswith("20 repaired, 1 unchanged, 1 failed in ")
+    assert calls[0] == (0, 22, None) and calls[-1][:2] == (22, 22)
+    assert report.frames == 21 * 240
+
+
+def test_ctrl_c_stops_the_pool_and_leaves_no_temporary_files(clean_tree, tmp_path):
+    root, _ = clean_tree
+
+    def interrupt_after_first(done, total, record):
+        if done == 1:
+            raise KeyboardInterrupt
+
+    with pytest.raises(batch.BatchInterrupted) as caught:
+        mocapfill.repair_many(root, tmp_path / "out", options=RepairOptions(method="linear"),
+                              jobs=2, progress=interrupt_after_first)
+    assert len(caught.value.report.records) == 1
+    assert multiprocessing.active_children() == []
+    assert not list((tmp_path / "out").rglob(".*"))
+
+
+def test_ctrl_c_exits_130(clean_tree, tmp_path, monkeypatch):
+    root, _ = clean_tree
+
+    def interrupted(job):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(batch, "repair_file", interrupted)
+    result = run(root, "-o", tmp_path / "out", "-j", "1", "--report", tmp_path / "r.json")
+    assert result.exit_code == 130
+    assert "interrupted" in result.stderr
+    assert _report(tmp_path / "r.json")["summary"]["files"] == 0
