@@ -374,11 +374,14 @@ def _read(job: FileJob):
 
 
 def _options_for(job: FileJob, rate: float):
+    from . import formats
     from .pipeline import RepairOptions
 
     options = job.options or RepairOptions()
     if job.max_gap_s is not None:
         options = replace(options, max_gap_frames=round(job.max_gap_s * rate))
+    if formats.same_skeleton_format(job.input, job.output):
+        options = replace(options, space="channels")
     return options
 
 

@@ -8,10 +8,18 @@ Heavy imports (numpy, scipy) happen inside the commands so ``mocapfill --help`` 
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 
 import click
+
+# One BLAS thread unless the user chose otherwise (set OPENBLAS_NUM_THREADS etc. to
+# override): the solvers make many small products, where threads cost more than they
+# give, and on a busy or batch-loaded machine threaded BLAS measured 5-18x slower.
+# This runs before numpy is first imported by any command.
+for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
 
 EXIT_CHECK_FAILED = 1
 EXIT_USAGE = 2
@@ -177,12 +185,17 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
 @click.option("--gaps-report", type=click.Path(path_type=Path), default=None,
               help="One file: write one row per gap (marker, first/last frame, length in "
                    "frames and seconds, method, status) to FILE.csv or FILE.json.")
+@click.option("--max-jump", "max_jump_mm", type=float, default=None, metavar="MM",
+              help="Reject (leave missing, report) a fill whose first sample at a gap end "
+                   "misses the constant-velocity prediction from the observed side by more "
+                   "than MM millimetres. Default: the larger of 40 mm and 5x the marker's "
+                   "largest observed frame-to-frame acceleration; 0 disables the check.")
 @click.option("--check", is_flag=True,
               help="Exit with code 1 when any gap is left unfilled (in any file).")
 @_zero_option
 def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, report_path,
            suffix, method: str, rank, lam, mu, rho, eta0, tol, max_iter, max_gap, ends, markers,
-           exclude, gaps_report, check, zero_is_missing) -> None:
+           exclude, max_jump_mm, gaps_report, check, zero_is_missing) -> None:
     """Fill the gaps of IN and write OUT; only missing samples change.
 
     The output format follows OUT's suffix; a same-format repair patches a copy of IN
@@ -198,10 +211,11 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
     solver_options = _solver_options(rank=rank, lam=lam, mu=mu, rho=rho, eta0=eta0, tol=tol,
                                      max_iter=max_iter)
 
-    def options(max_gap_frames: int | None) -> RepairOptions:
+    def options(max_gap_frames: int | None, space: str = "positions") -> RepairOptions:
         return RepairOptions(method=method, solver_options=solver_options,
                              max_gap_frames=max_gap_frames, ends=ends,
-                             markers=tuple(markers), exclude=tuple(exclude))
+                             markers=tuple(markers), exclude=tuple(exclude),
+                             max_jump_mm=max_jump_mm, space=space)
 
     if out_dir is not None or in_place:
         frames, seconds = _batch_max_gap(max_gap)
@@ -217,7 +231,9 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
     from .pipeline import repair as run_repair
 
     motion = _read(in_path, zero_is_missing)
-    result = run_repair(motion, options(_parse_max_gap(max_gap, motion.rate)))
+    # A BVH/AMC written back to its own format is completed in joint-channel space.
+    space = "channels" if formats.same_skeleton_format(in_path, out_path) else "positions"
+    result = run_repair(motion, options(_parse_max_gap(max_gap, motion.rate), space))
     formats.write(result.motion, out_path)
     if gaps_report is not None:
         from .report import write_gaps_report
@@ -366,7 +382,7 @@ def simulate(in_path: Path, out_path: Path, mr, ml, n_markers, seed, zero_is_mis
     motion = _read(in_path, zero_is_missing)
     # A skeleton clip written back to its own format loses joint channels (nan cells);
     # otherwise the protocols remove marker (or joint position) samples.
-    simulate = simulate_channel_gaps if _same_skeleton_format(in_path, out_path) \
+    simulate = simulate_channel_gaps if formats.same_skeleton_format(in_path, out_path) \
         else simulate_gaps
     gapped = simulate(motion, mr=mr, ml=ml, markers=n_markers, seed=seed)
     formats.write(gapped, out_path)
@@ -398,12 +414,6 @@ def rank(in_path: Path, theta: float, as_json: bool, zero_is_missing: str) -> No
                                                    estimate.singular_values]}))
     else:
         click.echo(f"rank: {estimate.rank}")
-
-
-def _same_skeleton_format(in_path: Path, out_path: Path) -> bool:
-    """True when IN and OUT are both BVH or both AMC: work in joint-channel space."""
-    suffix = in_path.suffix.lower()
-    return suffix in (".bvh", ".amc") and out_path.suffix.lower() == suffix
 
 
 def _evidence_markers(motion):

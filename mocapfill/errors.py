@@ -27,3 +27,7 @@ class ParameterError(MocapfillError, ValueError):
 
 class NothingToRepair(MocapfillError):
     """The clip holds no marker that can be filled (every sample missing, no markers, ...)."""
+
+
+class SolverError(MocapfillError):
+    """A completion method failed (non-finite output, no convergence it can report)."""

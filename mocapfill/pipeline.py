@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import NothingToRepair, ParameterError
+from .errors import NothingToRepair, ParameterError, SolverError
 from .gaps import Gap, find_gaps, missing_runs
 from .motion import Motion
 from .scaling import UnitScale
@@ -286,7 +286,7 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     # Sacred: observed samples come from the input, bit for bit.
     positions[motion.observed] = motion.positions[motion.observed]
     if not np.isfinite(positions[new_observed]).all():
-        raise NothingToRepair(f"method {options.method!r} returned non-finite values")
+        raise SolverError(f"method {options.method!r} returned non-finite values")
     return RepairResult(motion.with_positions(positions, new_observed), outcomes,
                         time.perf_counter() - started)
 

@@ -95,3 +95,25 @@ def test_every_format_reports_info_rank_and_simulates(tmp_path):
         result = run("simulate", path, sim, "--mr", "0.2", "--seed", "3")
         assert result.exit_code == 0, (name, result.output)
         assert (~formats.read(sim).observed).sum() > (~formats.read(path).observed).sum()
+
+
+def test_bvh_simulate_and_repair_through_the_cli_patch_only_gap_cells(tmp_path):
+    clip = shared_file("cmu/10_01.bvh")
+    gapped, out = tmp_path / "gapped.bvh", tmp_path / "out.bvh"
+    assert run("simulate", clip, gapped, "--ml", "20", "--markers", "3", "--seed", "4"
+               ).exit_code == 0
+    result = run("repair", gapped, out, "--method", "spline")
+    assert result.exit_code == 0, result.output
+    before, after = gapped.read_text().splitlines(), out.read_text().splitlines()
+    changed = [i for i, (a, b) in enumerate(zip(before, after)) if a != b]
+    assert len(before) == len(after) and changed
+    assert all("nan" in before[i] for i in changed) and "nan" not in out.read_text()
+
+
+def test_max_jump_option_rejects_fills_and_reports_them(tmp_path):
+    report = tmp_path / "gaps.json"
+    result = run("repair", shared_file("c3d/ezc3d-Vicon.c3d"), tmp_path / "o.c3d",
+                 "--method", "linear", "--max-jump", "0.001", "--gaps-report", report)
+    assert result.exit_code == 0, result.output
+    statuses = {row["status"] for row in __import__("json").loads(report.read_text())["gaps"]}
+    assert "rejected: jump" in statuses

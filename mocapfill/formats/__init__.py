@@ -48,6 +48,17 @@ WRONG_SUFFIXES: dict[str, str] = {
 }
 
 
+# Skeleton formats whose writers patch joint channels (a repair into the same format works
+# in channel space; anything else works on joint positions).
+SKELETON_FORMATS = (".bvh", ".amc")
+
+
+def same_skeleton_format(in_path: str | os.PathLike, out_path: str | os.PathLike) -> bool:
+    """True when both files are BVH, or both AMC: repair and simulate in channel space."""
+    suffix = Path(in_path).suffix.lower()
+    return suffix in SKELETON_FORMATS and Path(out_path).suffix.lower() == suffix
+
+
 def format_module(path: str | os.PathLike) -> ModuleType:
     """The module that reads and writes files with this suffix."""
     suffix = Path(path).suffix.lower()
