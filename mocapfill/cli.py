@@ -566,5 +566,27 @@ def bench_speed(runs: int, quick: bool, no_compare: bool, json_path: Path | None
         json_path.write_text(json.dumps(rows_as_dicts(rows), indent=1))
 
 
+@bench.command("paper")
+@click.option("--plots", "plots_dir", type=click.Path(path_type=Path, file_okay=False),
+              default=None, help="Write one PNG per figure into DIR (needs matplotlib).")
+@click.option("--quick", is_flag=True,
+              help="A small grid and one seed (about a minute) instead of the full run "
+                   "(about 20 minutes on 2 cores).")
+@click.option("--output", "markdown_path", type=click.Path(path_type=Path), default=None,
+              help="Also write the markdown report to FILE.md.")
+def bench_paper(plots_dir: Path | None, quick: bool, markdown_path: Path | None) -> None:
+    """Reproduce the paper's Figs. 2-6: synthetic NRE/time against IALM and PSVT, rank
+    estimate robustness, truncated-rank sweep, TrNN against TSMC over mr and ml (RMSE in
+    mm). Prints a markdown report."""
+    from .bench_paper import format_markdown, run_paper
+
+    if plots_dir is not None:
+        plots_dir.mkdir(parents=True, exist_ok=True)
+    report = format_markdown(run_paper(quick, plots_dir))
+    click.echo(report)
+    if markdown_path is not None:
+        markdown_path.write_text(report)
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()
