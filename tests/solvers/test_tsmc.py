@@ -9,7 +9,8 @@ from mocapfill.solvers import _linalg, interp, tsmc
 from ._synth import marker_gaps, masked, rel, smooth_low_rank
 
 
-@pytest.mark.parametrize("n", [1, 2, 5, 16, 33])
+# 134 = 2·67 and 409 (prime) take the banded-Cholesky path, the others the DCT.
+@pytest.mark.parametrize("n", [1, 2, 5, 16, 33, 128, 134, 409])
 def test_temporal_solve_matches_dense_solve(n):
     rng = np.random.default_rng(n)
     B = rng.standard_normal((4, n))
