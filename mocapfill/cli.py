@@ -26,8 +26,8 @@ EXIT_USAGE = 2
 EXIT_FAILED = 123
 EXIT_INTERRUPTED = 130
 
-METHOD_NAMES = ("trnn", "trnn-paper", "linear", "spline", "pchip", "pca", "svt", "tsmc",
-                "ialm", "psvt")
+METHOD_NAMES = ("trnn", "trnn-paper", "trnn-lowrank", "linear", "spline", "pchip", "pca", "svt",
+                "tsmc", "ialm", "psvt")
 
 
 def _fail(message: str, code: int) -> None:
@@ -150,7 +150,8 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
               help="Batch: output format (.c3d, .csv, .npz, ...). Default: each input's own.")
 @click.option("--method", type=click.Choice(METHOD_NAMES), default="trnn", show_default=True,
               help="Completion method. trnn: our converged TrNN (default); trnn-paper: the "
-                   "published algorithm and settings; linear/spline/pchip: interpolation "
+                   "published algorithm and settings; trnn-lowrank: our TrNN alone, without "
+                   "the validated per-gap blend (faster); linear/spline/pchip: interpolation "
                    "along time; pca: Gløersen & Federolf 2016; svt, tsmc, ialm, psvt: the "
                    "paper's comparison methods.")
 @click.option("--rank", type=int, default=None,
@@ -564,6 +565,36 @@ def bench_speed(runs: int, quick: bool, no_compare: bool, json_path: Path | None
     click.echo(format_speed_table(rows))
     if json_path is not None:
         json_path.write_text(json.dumps(rows_as_dicts(rows), indent=1))
+
+
+@bench.command("accuracy")
+@click.option("--quick", is_flag=True,
+              help="WalkL_0001 and 85_02 (mr 0.4, ml 40), one seed, instead of all cases.")
+@click.option("--methods", default=None, metavar="A,B,...",
+              help="Comma-separated methods (default: all but svt, which takes minutes).")
+@click.option("--json", "json_path", type=click.Path(path_type=Path), default=None,
+              help="Also write the rows to FILE.json.")
+@click.option("--plots", "plots_dir", type=click.Path(path_type=Path, file_okay=False),
+              default=None, help="Write bar charts into DIR (needs matplotlib).")
+def bench_accuracy(quick: bool, methods: str | None, json_path: Path | None,
+                   plots_dir: Path | None) -> None:
+    """Every method on the shared data with fixed seeds: the Gløersen-Federolf walking
+    set (real gaps) and the paper's protocols on CMU clips. Prints a methods x cases
+    table of RMSE in mm and time in s."""
+    from .bench import format_table, run_accuracy
+
+    chosen = (["trnn", "trnn-lowrank", "trnn-paper", "pca", "spline", "pchip", "linear",
+               "tsmc", "ialm", "psvt"] if methods is None
+              else [m.strip() for m in methods.split(",") if m.strip()])
+    unknown = sorted(set(chosen) - set(METHOD_NAMES))
+    if unknown:
+        from .errors import ParameterError
+
+        raise ParameterError(f"unknown method(s) {', '.join(unknown)}")
+    if plots_dir is not None:
+        plots_dir.mkdir(parents=True, exist_ok=True)
+    rows = run_accuracy(quick, chosen, json_path=json_path, plots_dir=plots_dir)
+    click.echo(format_table(rows))
 
 
 @bench.command("paper")

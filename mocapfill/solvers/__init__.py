@@ -28,6 +28,7 @@ Method = Callable[..., np.ndarray]
 METHODS: dict[str, str] = {
     "trnn": "mocapfill.solvers.trnn:complete",
     "trnn-paper": "mocapfill.solvers.trnn:complete_paper",
+    "trnn-lowrank": "mocapfill.solvers.trnn:complete_lowrank",
     "linear": "mocapfill.solvers.interp:linear",
     "spline": "mocapfill.solvers.interp:spline",
     "pchip": "mocapfill.solvers.interp:pchip",

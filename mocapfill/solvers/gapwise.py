@@ -1,0 +1,457 @@
+"""Per-gap blending of gap fillers, with weights learned from the clip itself.
+
+No single completion method wins on every gap (``shared/docs/MODEL.md``, "What we
+measured"): a cubic spline along time is very hard to beat on gaps of a few frames, the
+low-rank TrNN fill carries long gaps on repetitive motion, and fills driven by the
+markers that stay visible during the gap (a local regression, a rigid-body fit on the
+most rigidly attached markers) win on long gaps in non-repetitive motion. This module
+blends such candidate fills gap by gap, with weights chosen by *validation on the clip*:
+
+1. **Pseudo-gaps.** For a sample of the clip's own interior gaps, hide an observed
+   stretch of the same marker with the same length, near the real gap and not touching
+   any other gap (at most ``validation_fraction`` of the observed samples are hidden).
+2. **Score.** Run every candidate on the clip with the pseudo-gaps hidden and compare
+   with the hidden truth.
+3. **Weights.** For every class of gap length (1, 2, 3–4, 5–8, …, doubling) fit convex
+   weights w ≥ 0, Σw = 1 that minimise the squared error of the blend on that class's
+   pseudo-gaps (non-negative least squares).
+4. **Fill.** Run every candidate on the real mask and blend each real gap with the
+   weights of its length class.
+
+Every candidate joins the observed samples continuously at both ends of every gap
+(interpolants by construction; model fills by adding the linear ramp between their
+offsets from the observed samples just before and just after the gap), so the blend does
+too.
+
+A candidate is ``fn(matrix, observed) -> completed`` on the unit-RMS matrix; gaps are
+runs of missing frames of one *group* of rows (the three coordinates of a marker, or a
+single row when the mask is not organised in whole markers).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from scipy.interpolate import make_interp_spline
+from scipy.optimize import nnls
+
+from ..gaps import missing_runs
+from ._linalg import linear_fill
+
+Candidate = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+# Gaps shorter than this use only the cheap candidates (spline and the global fill): the
+# per-gap models need a stretch of motion to be worth their per-gap cost.
+MIN_MODEL_GAP = 5
+# A real gap with at least this many stand-ins is weighted on its own evidence.
+MIN_OWN_STANDINS = 6
+
+
+@dataclass(frozen=True)
+class GapSet:
+    """Interior gaps of a clip as (group, start, stop) with stop exclusive."""
+
+    groups: np.ndarray          # (g, k) row indices of each group (k = 3 for markers)
+    gaps: list[tuple[int, int, int]]
+
+    def rows(self, group: int) -> np.ndarray:
+        return self.groups[group]
+
+
+def row_groups(observed: np.ndarray) -> np.ndarray:
+    """Rows grouped as markers (3 rows with one mask) when the mask allows, else singly."""
+    m = observed.shape[0]
+    if m % 3 == 0 and (observed[0::3] == observed[1::3]).all() and \
+            (observed[0::3] == observed[2::3]).all():
+        return np.arange(m).reshape(-1, 3)
+    return np.arange(m).reshape(-1, 1)
+
+
+def interior_gaps(observed: np.ndarray, groups: np.ndarray) -> list[tuple[int, int, int]]:
+    """Gaps with an observed sample on both sides (end gaps are not filled by default)."""
+    n = observed.shape[1]
+    return [(g, a, b) for g, rows in enumerate(groups)
+            for a, b in missing_runs(observed[rows[0]]) if a > 0 and b < n]
+
+
+def length_class(length: int) -> int:
+    """0 for 1 frame, 1 for 2, 2 for 3–4, 3 for 5–8, …"""
+    return int(np.ceil(np.log2(max(length, 1))))
+
+
+def ramp(values_before: np.ndarray, values_after: np.ndarray, length: int) -> np.ndarray:
+    """(k, length) linear ramp from the offset just before a gap to the one just after."""
+    s = np.arange(1, length + 1) / (length + 1)
+    return np.outer(values_before, 1 - s) + np.outer(values_after, s)
+
+
+def join_ends(fill: np.ndarray, matrix: np.ndarray, observed: np.ndarray,
+              gapset: GapSet) -> np.ndarray:
+    """Add to every interior gap the ramp that makes ``fill`` meet the observed samples.
+
+    ``fill`` is a full-matrix estimate whose values on the observed samples next to a gap
+    may differ from the data (a low-rank fit); the corrected fill equals the data at the
+    samples just outside the gap, with the offset interpolated linearly in between.
+    """
+    out = np.where(observed, matrix, fill)
+    for g, a, b in gapset.gaps:
+        rows = gapset.rows(g)
+        before = matrix[rows, a - 1] - fill[rows, a - 1]
+        after = matrix[rows, b] - fill[rows, b]
+        out[rows, a:b] = fill[rows, a:b] + ramp(before, after, b - a)
+    return out
+
+
+# --------------------------------------------------------------------------- candidates
+
+def odd_spline_fill(matrix: np.ndarray, observed: np.ndarray, *, degree: int = 5
+                    ) -> np.ndarray:
+    """Interpolating spline of odd ``degree`` along time through each row's samples.
+
+    Degree 5 or 7 (``scipy.interpolate.make_interp_spline``) is far more accurate than a
+    cubic on smooth 120 Hz motion and far worse on noisy or abrupt motion; validation
+    decides. End gaps are held (as the cubic spline does); rows with too few samples are
+    filled linearly.
+    """
+    out = linear_fill(matrix, observed)
+    t = np.arange(matrix.shape[1], dtype=np.float64)
+    for row in range(matrix.shape[0]):
+        idx = np.flatnonzero(observed[row])
+        if idx.size < degree + 1 or idx.size == observed.shape[1]:
+            continue
+        inner = ~observed[row]
+        inner[:idx[0]] = False
+        inner[idx[-1] + 1:] = False
+        if inner.any():
+            out[row, inner] = make_interp_spline(t[idx], matrix[row, idx], k=degree)(t[inner])
+    return out
+
+
+def _xyz(matrix: np.ndarray) -> np.ndarray:
+    """(n, markers, 3) view of a 3·markers × n matrix."""
+    return matrix.reshape(-1, 3, matrix.shape[1]).transpose(2, 0, 1)
+
+
+def _kabsch(reference: np.ndarray, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rigid motions taking ``reference`` (k, 3) onto each of ``frames`` (L, k, 3)."""
+    pc = reference.mean(axis=0)
+    qc = frames.mean(axis=1)
+    H = np.einsum("ka,lkb->lab", reference - pc, frames - qc[:, None])
+    U, _, Vt = np.linalg.svd(H)
+    V = np.swapaxes(Vt, 1, 2)
+    sign = np.sign(np.linalg.det(V @ np.swapaxes(U, 1, 2)))
+    V[:, :, 2] *= sign[:, None]
+    R = V @ np.swapaxes(U, 1, 2)
+    return R, qc - R @ pc
+
+
+def distance_spread(P: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    """(markers, markers) standard deviation over time of the distance between markers.
+
+    Small for markers on the same rigid segment; ∞ on the diagonal and for pairs that
+    share fewer than 10 observed frames.
+    """
+    k = P.shape[1]
+    spread = np.full((k, k), np.inf)
+    Q = np.nan_to_num(P)
+    for j in range(k):
+        both = seen[:, j:j + 1] & seen                               # (n, markers)
+        dist = np.linalg.norm(Q - Q[:, j:j + 1], axis=2)
+        count = both.sum(axis=0)
+        mean = np.where(both, dist, 0.0).sum(axis=0) / np.maximum(count, 1)
+        var = np.where(both, (dist - mean) ** 2, 0.0).sum(axis=0) / np.maximum(count, 1)
+        spread[j] = np.where(count >= 10, np.sqrt(var), np.inf)
+        spread[j, j] = np.inf
+    return spread
+
+
+def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
+               min_gap: int = MIN_MODEL_GAP) -> np.ndarray | None:
+    """Rigid-body fill: move the marker with its most rigidly attached visible markers.
+
+    For a gap [a, b) of marker j, the ``donors`` markers observed on [a−1, b] whose
+    distance to j varies least are taken as one rigid body; the rigid motion (Kabsch)
+    from their positions at frame a−1 to those at every gap frame carries j's position
+    at a−1 into the gap, likewise from frame b, and the two are blended linearly so the
+    fill meets both ends exactly. Gaps shorter than ``min_gap`` and gaps without enough
+    donors get a linear fill. None when the rows are not markers.
+    """
+    groups = row_groups(observed)
+    if groups.shape[1] != 3:
+        return None
+    out = linear_fill(matrix, observed)
+    P = _xyz(np.where(observed, matrix, np.nan))
+    seen = observed[0::3].T                                          # (n, markers)
+    spread_all = distance_spread(P, seen)
+    for j, a, b in interior_gaps(observed, groups):
+        if b - a < min_gap:
+            continue
+        usable = seen[a - 1:b + 1].all(axis=0)
+        spread = np.where(usable, spread_all[j], np.inf)
+        chosen = np.argsort(spread)[:donors]
+        if chosen.size < 3 or not np.isfinite(spread[chosen]).all():
+            continue
+        frames = P[a:b][:, chosen]
+        s = np.arange(1, b - a + 1) / (b - a + 1)
+        fill = np.zeros((b - a, 3))
+        for ref, weight in ((a - 1, 1 - s), (b, s)):
+            R, t = _kabsch(P[ref, chosen], frames)
+            fill += weight[:, None] * (R @ P[ref, j] + t)
+        out[3 * j:3 * j + 3, a:b] = fill.T
+    return out
+
+
+def regression_fill(matrix: np.ndarray, observed: np.ndarray, *, window: int = 400,
+                    ridge: float = 1e-3, min_gap: int = MIN_MODEL_GAP) -> np.ndarray:
+    """Local ridge regression on the groups that stay visible during each gap.
+
+    For a gap [a, b) of group g, the predictors are every other group observed on
+    [a−1, b]; the training frames are those within ``window`` frames of the gap where g
+    and all predictors are observed. The prediction is corrected by the ramp of its
+    offsets at a−1 and b. Shorter gaps (< ``min_gap``) and gaps with fewer than 10 training
+    frames get a linear fill.
+    """
+    groups = row_groups(observed)
+    gaps = interior_gaps(observed, groups)
+    out = linear_fill(matrix, observed)
+    seen = observed[groups[:, 0]]                                    # (groups, n)
+    n = matrix.shape[1]
+    for g, a, b in gaps:
+        if b - a < min_gap:
+            continue
+        predictors = np.flatnonzero(seen[:, a - 1:b + 1].all(axis=1))
+        predictors = predictors[predictors != g]
+        if predictors.size == 0:
+            continue
+        # The 2·window frames nearest the gap (one-sided near the clip ends).
+        outside = np.r_[0:a, b:n]
+        frames = np.sort(outside[np.argsort(np.maximum(a - outside, outside - b + 1),
+                                            kind="stable")[:2 * window]])
+        frames = frames[seen[g, frames] & seen[predictors][:, frames].all(axis=0)]
+        if frames.size < 10:
+            continue
+        rows_x = groups[predictors].ravel()
+        rows_y = groups[g]
+        A = matrix[np.ix_(rows_x, frames)].T
+        y = matrix[np.ix_(rows_y, frames)].T
+        a_mean, y_mean = A.mean(axis=0), y.mean(axis=0)
+        A0 = A - a_mean
+        gram = A0.T @ A0
+        gram[np.diag_indices_from(gram)] += ridge * frames.size
+        coef = np.linalg.solve(gram, A0.T @ (y - y_mean))
+        span = np.arange(a - 1, b + 1)
+        pred = ((matrix[np.ix_(rows_x, span)].T - a_mean) @ coef + y_mean).T   # (k, L+2)
+        before = matrix[rows_y, a - 1] - pred[:, 0]
+        after = matrix[rows_y, b] - pred[:, -1]
+        out[np.ix_(rows_y, np.arange(a, b))] = pred[:, 1:-1] + ramp(before, after, b - a)
+    return out
+
+
+# --------------------------------------------------------------------------- validation
+
+def pseudo_gaps(observed: np.ndarray, gapset: GapSet, rng: np.random.Generator, *,
+                fraction: float = 0.1, repeats: int = 10, repeats_long: int = 2,
+                tries: int = 8
+                ) -> list[tuple[tuple[int, int, int], int]]:
+    """Observed stretches to hide, up to ``repeats`` per real gap (``repeats_long`` for gaps
+    of ``MIN_MODEL_GAP`` frames or more): same group, same length.
+
+    A stretch [s, s+L) of group g is accepted when g is observed on [s−1, s+L] (so it is
+    an interior gap of exactly length L) and it keeps one observed frame between itself
+    and every other pseudo-gap. Other real gaps may lie close by, as they do around the
+    real gap: a stand-in placed only in clean stretches would flatter the interpolants,
+    which degrade where knots are sparse. It is sought near the real gap first (within
+    4L + 8 frames), then anywhere. At most ``fraction`` of the observed samples are hidden.
+    Long gaps get few stand-ins: many long stand-ins at once make the validation clip far
+    harder than the real one (on WalkL_0003, 10 per gap put TrNN's validation error at
+    17.7 mm against 2.1 mm on the real gaps, and reversed its ranking against PCA; 2 per
+    gap gave 2.7 mm and the right ranking).
+    Returns ((group, start, stop), index of the real gap it stands in for) pairs.
+    """
+    n = observed.shape[1]
+    seen = observed[gapset.groups[:, 0]]
+    budget = fraction * seen.sum()
+    free = seen.copy()                  # observed and not next to a chosen pseudo-gap
+    chosen = []
+    # Every real gap gets up to ``repeats`` stand-ins, round by round; within a round the
+    # gaps of rare length classes go first so the budget does not all go to short gaps.
+    classes = np.array([length_class(b - a) for _, a, b in gapset.gaps], dtype=int)
+    frequency = np.bincount(classes)[classes] if classes.size else classes
+    rounds = []
+    for _ in range(repeats):
+        shuffled = rng.permutation(len(gapset.gaps))
+        rounds.append(shuffled[np.argsort(frequency[shuffled], kind="stable")])
+    order = np.concatenate(rounds) if rounds else np.zeros(0, int)
+    used = 0
+    stand_ins = np.zeros(len(gapset.gaps), int)
+    for index in order:
+        g, a, b = gapset.gaps[index]
+        length = b - a
+        if used + length > budget or length + 2 > n:
+            continue
+        if length >= MIN_MODEL_GAP and stand_ins[index] >= repeats_long:
+            continue
+        for attempt in range(tries):
+            reach = 4 * length + 8
+            lo, hi = ((max(1, a - reach), min(n - length - 1, b + reach))
+                      if attempt < tries // 2 else (1, n - length - 1))
+            if hi <= lo:
+                continue
+            s = int(rng.integers(lo, hi))
+            if free[g, s - 1:s + length + 1].all():
+                free[g, s - 1:s + length + 1] = False
+                chosen.append(((g, s, s + length), int(index)))
+                stand_ins[index] += 1
+                used += length
+                break
+    return chosen
+
+
+def _convex_fit(E: np.ndarray) -> np.ndarray:
+    """w ≥ 0, Σw = 1 minimising ‖E w‖ (E: samples × candidates), by NNLS."""
+    k = E.shape[1]
+    scale = np.sqrt((E ** 2).sum() / E.size) or 1.0
+    big = 1e3 * np.sqrt(E.shape[0])
+    w, _ = nnls(np.vstack([E / scale, np.full((1, k), big)]), np.r_[np.zeros(E.shape[0]), big])
+    return w / w.sum() if w.sum() > 0 else np.full(k, 1.0 / k)
+
+
+def _best_single(E: np.ndarray) -> np.ndarray:
+    return np.eye(E.shape[1])[np.argmin((E ** 2).sum(axis=0))]
+
+
+def _cross_validated(blocks: list[np.ndarray]) -> np.ndarray:
+    """The convex blend, or the best single candidate when the blend does not generalise.
+
+    Two-fold cross-validation over pseudo-gaps (alternate gaps in each fold): the blend
+    is kept only when its held-out error beats that of picking the best single candidate.
+    """
+    E = np.vstack(blocks)
+    if len(blocks) < 4:
+        return _best_single(E)
+    folds = [np.vstack(blocks[0::2]), np.vstack(blocks[1::2])]
+    blend_err = single_err = 0.0
+    for fit, test in (folds, folds[::-1]):
+        blend_err += float(((test @ _convex_fit(fit)) ** 2).sum())
+        single_err += float(((test @ _best_single(fit)) ** 2).sum())
+    return _convex_fit(E) if blend_err < single_err else _best_single(E)
+
+
+def blend_weights(errors: dict[int, list[np.ndarray]], n_candidates: int, *,
+                  min_gaps: int = 30) -> dict[int, np.ndarray]:
+    """Convex weights per length class from candidate errors, one block per pseudo-gap.
+
+    A class with fewer than ``min_gaps`` pseudo-gaps borrows those of its nearest classes
+    (shorter first) until it has enough.
+    """
+    weights = {}
+    for cls in errors:
+        blocks = list(errors[cls])
+        for step in range(1, 64):
+            if len(blocks) >= min_gaps:
+                break
+            for other in (cls - step, cls + step):
+                blocks.extend(errors.get(other, []))
+        weights[cls] = _cross_validated(blocks)
+    return weights
+
+
+def _weights_for(cls: int, weights: dict[int, np.ndarray], default: np.ndarray) -> np.ndarray:
+    if cls in weights:
+        return weights[cls]
+    if not weights:
+        return default
+    nearest = min(weights, key=lambda c: (abs(c - cls), -c))
+    return weights[nearest]
+
+
+@dataclass(frozen=True)
+class BlendReport:
+    """What the validation learned: weights per length class, candidate names, sizes."""
+
+    names: tuple[str, ...]
+    weights: dict[int, np.ndarray]
+    pseudo_gaps: int
+
+
+def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candidate], *,
+          default: str, seed: int = 0, validation_fraction: float = 0.1,
+          prior: dict[str, float] | None = None, prior_share: float = 0.5,
+          ) -> tuple[np.ndarray, BlendReport]:
+    """Fill every interior gap with a validated convex blend of the candidate fills.
+
+    Parameters
+    ----------
+    matrix, observed
+        The unit-RMS matrix and its mask (solver convention).
+    candidates
+        name → fill function; each must return a full matrix that meets the observed
+        samples continuously at gap ends.
+    default
+        Candidate used alone for length classes with no validation evidence at all.
+    prior, prior_share
+        Weights (name → weight) mixed in with share ``prior_share`` on gaps of at least
+        ``MIN_MODEL_GAP`` frames. Validation hides extra data, which handicaps the global
+        candidates (their evidence is the whole clip) more than the local ones; on long
+        real gaps the validated weights alone were measured to over-trust local fills.
+    seed
+        Seed of the pseudo-gap placement (the fill is deterministic for a given seed).
+    validation_fraction
+        Largest share of the observed samples hidden for validation.
+
+    Returns
+    -------
+    completed, BlendReport
+        Gaps touching the clip ends take the ``default`` candidate's fill.
+    """
+    names = tuple(candidates)
+    groups = row_groups(observed)
+    gapset = GapSet(groups, interior_gaps(observed, groups))
+    rng = np.random.default_rng(seed)
+    hidden = pseudo_gaps(observed, gapset, rng, fraction=validation_fraction)
+
+    errors: dict[int, list[np.ndarray]] = {}
+    own: dict[int, list[np.ndarray]] = {}      # real gap index -> its stand-ins' errors
+    if hidden:
+        train = observed.copy()
+        # The global candidate leans on the complete frames (its warm start is their
+        # subspace): a validation mask that destroys them would misjudge it, so stand-ins
+        # that would leave fewer than half of the clip's complete frames are dropped.
+        complete_floor = max(observed.all(axis=0).sum() // 2, 60)
+        kept = []
+        for (g, s, t), source in hidden:
+            trial = train.copy() if complete_floor > 60 else train
+            trial[groups[g], s:t] = False
+            if trial is not train and trial.all(axis=0).sum() < complete_floor:
+                continue
+            train = trial
+            kept.append(((g, s, t), source))
+        hidden = kept
+        fills = [fn(np.where(train, matrix, 0.0), train) for fn in candidates.values()]
+        for (g, a, b), source in hidden:
+            rows = groups[g]
+            truth = matrix[rows, a:b].ravel()
+            E = np.stack([f[rows, a:b].ravel() - truth for f in fills], axis=1)
+            errors.setdefault(length_class(b - a), []).append(E)
+            own.setdefault(source, []).append(E)
+    weights = blend_weights(errors, len(names))
+
+    fills = [fn(matrix, observed) for fn in candidates.values()]
+    fallback = np.eye(len(names))[names.index(default)]
+    prior_w = np.array([(prior or {}).get(name, 0.0) for name in names])
+    if prior_w.sum() > 0:
+        prior_w = prior_w / prior_w.sum()
+    out = np.where(observed, matrix, fills[names.index(default)])
+    for index, (g, a, b) in enumerate(gapset.gaps):
+        # A gap with enough stand-ins of its own (long gaps, which are few) is judged on
+        # that local evidence; the others share the weights of their length class.
+        if len(own.get(index, [])) >= MIN_OWN_STANDINS:
+            w = _cross_validated(own[index])
+        else:
+            w = _weights_for(length_class(b - a), weights, fallback)
+        if prior and b - a >= MIN_MODEL_GAP:
+            w = (1 - prior_share) * w + prior_share * prior_w
+        rows = groups[g]
+        out[rows, a:b] = sum(wk * f[rows, a:b] for wk, f in zip(w, fills) if wk > 0)
+    return out, BlendReport(names, weights, len(hidden))

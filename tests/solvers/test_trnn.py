@@ -1,0 +1,106 @@
+"""TrNN (Hu et al. 2018) and the default ``trnn`` method: defining properties."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mocapfill.pipeline import complete_matrix
+from mocapfill.solvers._linalg import linear_fill, second_difference_matrix, temporal_solve
+from mocapfill.solvers.trnn import complete, trnn
+from tests.conftest import shared_file
+
+
+def test_dct_temporal_step_equals_dense_solve():
+    rng = np.random.default_rng(0)
+    n, eta, mu = 37, 0.7, 100.0
+    T = second_difference_matrix(n)
+    B = rng.normal(size=(5, n))
+    dense = np.linalg.solve((eta * np.eye(n) + mu * T.T @ T).T, B.T).T
+    np.testing.assert_allclose(temporal_solve(B, eta, mu), dense, atol=1e-10, rtol=0)
+
+
+def test_rpca_mode_recovers_low_rank_part_of_paper_synthetic_data():
+    rng = np.random.default_rng(1)
+    m, n, r0, cr = 1000, 200, 10, 0.1
+    X_star = rng.normal(size=(m, r0)) @ rng.normal(size=(r0, n))
+    S_star = np.where(rng.random((m, n)) < cr, rng.uniform(-10, 10, (m, n)), 0.0)
+    D = X_star + S_star
+    result = trnn(D, np.ones((m, n), bool), rank=r0, d=r0, lam=1 / np.sqrt(max(m, n)),
+                  mu=0.0, rho=1.5, eta0=1.25 / np.linalg.norm(D, 2), tol=1e-7)
+    nre = np.linalg.norm(result.X - X_star) / np.linalg.norm(X_star)
+    assert nre < 1e-5
+
+
+def test_complete_matrix_returns_a_complete_matrix_unchanged():
+    rng = np.random.default_rng(2)
+    matrix = rng.normal(size=(12, 80)) * 100 + 500
+    out = complete_matrix(matrix, np.ones_like(matrix, bool), "trnn")
+    np.testing.assert_array_equal(out, matrix)
+
+
+def _smooth_low_rank_clip(n: int = 600, markers: int = 12, seed: int = 3) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 120.0
+    latent = np.sin(2 * np.pi * np.array([0.5, 0.9, 1.4, 2.1])[:, None] * t
+                    + rng.uniform(0, 6, (4, 1)))
+    return rng.normal(size=(3 * markers, 4)) @ latent
+
+
+def test_complete_beats_linear_on_a_long_gap_and_joins_both_ends():
+    X = _smooth_low_rank_clip()
+    observed = np.ones_like(X, bool)
+    a, b = 200, 290                                   # 90 frames of marker 2
+    observed[6:9, a:b] = False
+    filled = complete(np.where(observed, X, 0.0), observed)
+    linear = linear_fill(X, observed)
+    err = np.sqrt(np.mean((filled[6:9, a:b] - X[6:9, a:b]) ** 2))
+    err_linear = np.sqrt(np.mean((linear[6:9, a:b] - X[6:9, a:b]) ** 2))
+    assert err < 0.2 * err_linear
+    # No jump: the step into and out of the gap is no larger than the clip's own steps.
+    max_step = np.abs(np.diff(X[6:9], axis=1)).max()
+    assert np.abs(filled[6:9, a] - X[6:9, a - 1]).max() <= 1.5 * max_step
+    assert np.abs(X[6:9, b] - filled[6:9, b - 1]).max() <= 1.5 * max_step
+
+
+def test_complete_keeps_observed_entries():
+    X = _smooth_low_rank_clip(n=300, markers=8)
+    observed = np.ones_like(X, bool)
+    observed[3:6, 100:130] = False
+    filled = complete(np.where(observed, X, 0.0), observed)
+    np.testing.assert_allclose(filled[observed], X[observed], atol=1e-12)
+
+
+def _cmu_85_02():
+    from mocapfill.formats import read
+
+    return read(shared_file("cmu/85_02.c3d"))
+
+
+def test_default_beats_spline_on_cmu_85_02_continuous_gaps():
+    from mocapfill.gaps import simulate_gaps
+    from mocapfill.metrics import score
+    from mocapfill.pipeline import RepairOptions, repair
+
+    truth = _cmu_85_02()
+    gapped = simulate_gaps(truth, ml=40, seed=0)
+    errors = {m: score(truth, repair(gapped, RepairOptions(method=m)).motion, gapped).rmse_mm
+              for m in ("trnn", "spline")}
+    assert errors["trnn"] < 0.5 * errors["spline"]
+
+
+@pytest.mark.slow
+def test_walkl_default_beats_pca_on_average_and_holds_its_measured_level():
+    # Issue 4's target is a mean <= 2.0 mm and below pca on every file; measured
+    # (docs/results.md): mean 2.60 mm against pca 3.49, pca better on 0008 and 0009.
+    # This guards the level reached; tighten it as the target is approached.
+    from mocapfill import bench
+
+    shared_file("walkl/WalkL.mat")
+    rows = [r for c in bench.cases(False) if c.dataset == "walkl"
+            for r in bench.run_case(c, ["trnn", "pca"])]
+    by = {(r["case"], r["method"]): r["rmse_3d_mm"] for r in rows}
+    files = sorted({case for case, _ in by})
+    mean_trnn = np.mean([by[(f, "trnn")] for f in files])
+    assert mean_trnn <= 2.8
+    assert mean_trnn < np.mean([by[(f, "pca")] for f in files])
+    assert sum(by[(f, "trnn")] < by[(f, "pca")] for f in files) >= 8
