@@ -5,7 +5,7 @@ Every case times the real command, ``mocapfill repair IN OUT``, in a fresh Pytho
 and the peak resident memory of the child. The solver is also timed in-process to report
 iterations, milliseconds per iteration and the floor computed for one iteration on this
 machine (its FLOPs at the measured matrix-product rate plus its memory passes at the
-measured copy bandwidth plus its two DCTs), and the same clip is repaired with
+measured copy bandwidth plus its temporal solve), and the same clip is repaired with
 ``trnn-paper`` and ``tsmc`` for a side-by-side ratio.
 """
 from __future__ import annotations
@@ -79,7 +79,7 @@ def iteration_floor_ms(m: int, n: int, d: int | None = None) -> float:
     """The floor of one TrNN iteration on an m × n clip, measured on this machine.
 
     FLOPs: three m×n×d products (W R, Wᵀ L, L Rᵀ) at 2mnd each plus two d×d Gram
-    products; memory: about ten passes over m×n float64 arrays; two DCTs of m×n.
+    products; memory: about ten passes over m×n float64 arrays; one temporal solve.
     """
     d = m if d is None else d
     rng = np.random.default_rng(0)
@@ -90,12 +90,12 @@ def iteration_floor_ms(m: int, n: int, d: int | None = None) -> float:
     out = np.empty_like(a)
     best_pass = min(_timed(lambda: np.add(a, a, out=out)) for _ in range(5))
     bandwidth = 3 * a.nbytes / best_pass            # two reads and a write
-    from scipy.fft import dct, idct
+    from .solvers._linalg import temporal_solve
 
-    best_dct = min(_timed(lambda: idct(dct(a, norm="ortho", axis=1), norm="ortho", axis=1))
-                   for _ in range(3))
+    # The temporal step as the solver does it (DCT, or banded Cholesky for awkward n).
+    best_temporal = min(_timed(lambda: temporal_solve(a, 0.5, 100.0)) for _ in range(3))
     flops = 3 * 2.0 * m * n * d + 2 * 2.0 * (m + n) * d * d
-    return 1000.0 * (flops / gemm_rate + 10 * a.nbytes / bandwidth + best_dct)
+    return 1000.0 * (flops / gemm_rate + 10 * a.nbytes / bandwidth + best_temporal)
 
 
 def _timed(fn) -> float:
