@@ -208,10 +208,6 @@ def complete_lowrank(matrix: np.ndarray, observed: np.ndarray, *, rank: int | No
     return join_ends(result.X, matrix, observed, GapSet(groups, interior_gaps(observed, groups)))
 
 
-# Mixed into the validated weights on gaps of 5+ frames (see gapwise.blend); None = off.
-PRIOR: dict[str, float] | None = None
-
-
 def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
              validation_fraction: float = 0.1, **trnn_options) -> np.ndarray:
     """Our TrNN: the converged low-rank fill, blended gap by gap with other fillers.
@@ -276,5 +272,5 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
 
         candidates["pca"] = pca
     completed, _ = blend(matrix, observed, candidates, default="trnn", seed=seed,
-                         validation_fraction=validation_fraction, prior=PRIOR)
+                         validation_fraction=validation_fraction)
     return completed
