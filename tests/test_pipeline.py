@@ -165,3 +165,16 @@ def test_windowed_solve_is_close_to_the_whole_clip_solve():
     # A spline is local: windows change only the gap that straddles a window edge.
     assert error_windowed < 1.5 * error_whole
     np.testing.assert_array_equal(windowed[observed], matrix[observed])
+
+
+def test_clip_with_every_sample_missing_is_refused():
+    clip = smooth_clip(50, 3)
+    empty = clip.with_positions(clip.positions, np.zeros_like(clip.observed))
+    with pytest.raises(NothingToRepair, match="no marker has a single observed sample"):
+        repair(empty)
+
+
+def test_one_marker_clip_is_filled_along_time():
+    clip = smooth_clip(120, 1)
+    result = repair(with_gap(clip, 0, 40, 60))
+    assert result.motion.observed.all()

@@ -114,9 +114,9 @@ def _reconstruct(X: np.ndarray, i: int, predictors: list[int], train: np.ndarray
     B = V.T @ V0
     if transform == "inverse":
         B = np.linalg.pinv(B)
-    R = (M0n @ V0) @ B @ V.T
-    R = mean_N + R * std / w
-    return R[:, -3:]
+    R = ((M0n @ V0) @ B @ V.T)[:, -3:]
+    # Only the gapped marker's columns are wanted (a far predictor's weight may be 0).
+    return mean_N[-3:] + R * std[-3:] / w[-3:]
 
 
 def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
