@@ -54,7 +54,9 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, tau: float | None = No
 
     Returns
     -------
-    The last iterate Xᵏ, a new finite (m, n) array (observed entries are only approximated).
+    The iterate Xᵏ with the smallest residual on Ω (the stopping one when ε is reached), a
+    new finite (m, n) array (observed entries are only approximated). Iteration stops early
+    if it diverges (possible with δ = 1.2/p on very sparse masks).
     """
     matrix, observed = as_problem(matrix, observed)
     m, n = matrix.shape
@@ -74,11 +76,18 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, tau: float | None = No
 
     k0 = math.ceil(tau / (delta * np.linalg.norm(PD, 2)))
     Y = k0 * delta * PD
-    X = np.zeros((m, n))
+    best, best_error = np.zeros((m, n)), math.inf
     for _ in range(max_iter):
         X, _rank = shrink(Y, tau)
         residual = np.where(observed, PD - X, 0.0)
-        if np.linalg.norm(residual) / norm_PD <= tol:
+        error = float(np.linalg.norm(residual)) / norm_PD
+        if not math.isfinite(error) or error > 1e6:
+            # δ = 1.2/p is a heuristic step: on very sparse masks the iteration can
+            # diverge, and an SVD of overflowing values may never return. Keep the best.
+            break
+        if error < best_error:
+            best, best_error = X, error
+        if error <= tol:
             break
         Y += delta * residual
-    return X
+    return best

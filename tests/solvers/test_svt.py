@@ -37,3 +37,13 @@ def test_completes_rank3_with_30_percent_missing():
     out = svt.complete(data, observed)
     assert rel(out, M, ~observed) < 1e-3
     assert np.isnan(data[~observed]).all()
+
+
+def test_divergent_step_on_a_very_sparse_mask_stops_with_a_finite_iterate():
+    # δ = 1.2/p is huge when 2 % of the entries are seen: the iteration diverges, and an
+    # SVD of overflowing values may never return. The solver must stop and stay finite.
+    rng = np.random.default_rng(3)
+    matrix = rng.normal(size=(30, 40)) * 1e3
+    observed = rng.random((30, 40)) < 0.02
+    completed = svt.complete(matrix, observed, max_iter=5000)
+    assert np.isfinite(completed).all()
