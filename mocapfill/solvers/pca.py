@@ -86,6 +86,22 @@ def _n_components(s: np.ndarray, min_cum_sv: float) -> int:
     return int(np.searchsorted(np.cumsum(s), min_cum_sv * total * (1 - 1e-12)) + 1)
 
 
+def _right_singular(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Singular values and right singular vectors (rows of Vᵀ) of a tall A, descending.
+
+    From the eigendecomposition of the small Gram matrix AᵀA: the same subspaces as the
+    SVD of A at a fraction of its cost for frames ≫ columns (4499 × 123: 3 ms against
+    50 ms). Eigenvalues within rounding of zero (below 1e−12 of the largest: singular
+    values under 1e−6 of the largest, which the Gram matrix cannot resolve) are read as 0,
+    so an exactly low-rank A keeps its rank.
+    """
+    values, vectors = np.linalg.eigh(A.T @ A)
+    order = np.argsort(values)[::-1]
+    values = values[order]
+    values[values < 1e-12 * max(values[0], 0.0)] = 0.0
+    return np.sqrt(values), vectors[:, order].T
+
+
 def _reconstruct(X: np.ndarray, i: int, predictors: list[int], train: np.ndarray,
                  frames: np.ndarray, weights: np.ndarray, min_cum_sv: float,
                  transform: str) -> np.ndarray:
@@ -105,8 +121,8 @@ def _reconstruct(X: np.ndarray, i: int, predictors: list[int], train: np.ndarray
     N0n = (N0 - mean_N0) / std * w
     M0n = (M0 - mean_N0) / std * w
     scale = 1.0 / np.sqrt(max(len(train) - 1, 1))
-    _, s, Vt = np.linalg.svd(Nn * scale, full_matrices=False)
-    _, s0, V0t = np.linalg.svd(N0n * scale, full_matrices=False)
+    s, Vt = _right_singular(Nn * scale)
+    s0, V0t = _right_singular(N0n * scale)
     k = max(_n_components(s, min_cum_sv), _n_components(s0, min_cum_sv))
     k = min(k, Vt.shape[0], V0t.shape[0])
     V = Vt[:k].T
