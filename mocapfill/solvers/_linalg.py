@@ -34,9 +34,14 @@ def as_problem(matrix: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np
 
 
 def soft_threshold(x: np.ndarray, tau: float | np.ndarray) -> np.ndarray:
-    """``sign(x)·max(|x| - tau, 0)`` entrywise (a new array)."""
-    x = np.asarray(x, dtype=np.float64)
-    return np.sign(x) * np.maximum(np.abs(x) - tau, 0.0)
+    """``sign(x)·max(|x| - tau, 0)`` entrywise (a new array; float32 stays float32)."""
+    x = _floating(x)
+    return np.sign(x) * np.maximum(np.abs(x) - x.dtype.type(tau), 0)
+
+
+def _floating(x: np.ndarray) -> np.ndarray:
+    x = np.asarray(x)
+    return x if x.dtype in (np.float32, np.float64) else x.astype(np.float64)
 
 
 def svt(x: np.ndarray, tau: float) -> tuple[np.ndarray, int]:
@@ -76,17 +81,17 @@ def temporal_solve(b: np.ndarray, eta: float, mu: float) -> np.ndarray:
     """Solve ``X (eta·I + mu·TᵀT) = B`` for X, i.e. ``X = B Cᵀ Γ C`` with
     ``Γ = diag(1 / (eta + mu·16 sin⁴(iπ/(2n))))``, row-wise via the orthonormal DCT-II.
 
-    ``b`` is (m, n) with time along axis 1; needs ``eta > 0``. When n has a large prime
-    factor the FFT behind the DCT is slow (n = 4499 = 11·409: 72 ms for 123 rows against
-    3.6 ms at n = 810), and the same system is solved instead by a banded Cholesky
-    factorisation of the pentadiagonal ``eta·I + mu·TᵀT`` (17 ms there); both agree to
+    ``b`` is (m, n) with time along axis 1 (float32 stays float32); needs ``eta > 0``.
+    When n has a large prime factor the FFT behind the DCT is slow (n = 4499 = 11·409:
+    72 ms for 123 rows against 3.6 ms at n = 810), and the same system is solved instead
+    by a banded Cholesky factorisation of the pentadiagonal ``eta·I + mu·TᵀT`` (17 ms there); both agree to
     1e−12.
     """
-    b = np.asarray(b, dtype=np.float64)
+    b = _floating(b)
     n = b.shape[-1]
     if n > 64 and _largest_prime_factor(n) > 64:
-        return _banded_temporal_solve(b, eta, mu)
-    gamma = 1.0 / (eta + mu * second_difference_eigenvalues(n))
+        return _banded_temporal_solve(b, eta, mu).astype(b.dtype, copy=False)
+    gamma = (1.0 / (eta + mu * second_difference_eigenvalues(n))).astype(b.dtype)
     return idct(dct(b, type=2, norm="ortho", axis=-1) * gamma, type=2, norm="ortho", axis=-1)
 
 
