@@ -65,6 +65,24 @@ def _spd_inverse(A: np.ndarray) -> np.ndarray:
     return np.linalg.inv(A)
 
 
+def _wide_svd(X: np.ndarray, rank: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The thin SVD of a wide X (m ≤ n) from the eigendecomposition of the m × m X Xᵀ.
+
+    About 10× cheaper than LAPACK's SVD for mocap shapes (123 × 4500). Right vectors
+    beyond ``rank`` are only used scaled by √σ (the factor R), which stays accurate even
+    where σ is too small for the vector itself to be; the float32 fast path uses it.
+    """
+    values, vectors = np.linalg.eigh(X @ X.T)
+    order = np.argsort(values)[::-1]
+    values = np.clip(values[order], 0.0, None)
+    U = vectors[:, order]
+    sv = np.sqrt(values)
+    projections = U.T @ X                                      # rows: σᵢ vᵢᵀ
+    safe = np.where(sv > 0, sv, 1.0)
+    Vt = projections / safe[:, None]
+    return U, sv, Vt
+
+
 def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None,
          lam: float | None = None, mu: float = 100.0, rho: float = 1.4, eta0: float = 1e-5,
          eta_max: float = 1e10, tol: float = 1e-4, max_iter: int = 500,
@@ -123,7 +141,10 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
     X = linear_fill(D, observed) if X0 is None else np.array(X0, dtype=np.float64)
 
     # Initialisation chosen by the prototype (MODEL.md): factors from the SVD of X₀.
-    Us, sv, Vts = np.linalg.svd(X, full_matrices=False)
+    if dtype == np.float32 and m <= n:
+        Us, sv, Vts = _wide_svd(X, rank)
+    else:
+        Us, sv, Vts = np.linalg.svd(X, full_matrices=False)
     root = np.sqrt(sv[:d])
     L = (Us[:, :d] * root).astype(dtype)
     R = (Vts[:d].T * root).astype(dtype)
@@ -131,39 +152,64 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
     V = Vts[:rank].astype(dtype)            # r × n
     PD = PD.astype(dtype)
     X = X.astype(dtype)
+    omega = observed.astype(dtype)
     M = X.copy()
     S = PD - X
     Y1 = np.zeros_like(X)
     Y2 = np.zeros_like(X)
     eta = float(eta0)
     eye = np.eye(d, dtype=dtype)
+    # Work buffers: the updates below are the textbook expressions evaluated in place, in
+    # the same order (so the same rounding), without allocating m×n temporaries.
+    W, T, X_spare = np.empty_like(X), np.empty_like(X), np.empty_like(X)
 
     converged = False
     iterations = 0
     for iteration in range(1, max_iter + 1):
         iterations = iteration
         X_prev = X
-        W = M + PD - S + (Y1 + Y2) / eta
-        # (10) L then R, each a d×d SPD system; Uᵀ(V R) avoids forming the m×n UᵀV.
         e = dtype.type(eta)                 # keeps float32 products float32
+        # W = M + PD − S + (Y₁ + Y₂)/η
+        np.add(Y1, Y2, out=W)
+        W /= e
+        np.add(M, PD, out=T)
+        T -= S
+        W += T
+        # (10) L then R, each a d×d SPD system; Uᵀ(V R) avoids forming the m×n UᵀV.
         L = (e * (W @ R) + U.T @ (V @ R)) @ _spd_inverse(eye + 2 * e * (R.T @ R))
         R = (e * (W.T @ L) + V.T @ (U @ L)) @ _spd_inverse(eye + 2 * e * (L.T @ L))
-        X = L @ R.T
-        # (11a) S: soft threshold on Ω, free off Ω.
-        TS = PD - X + Y2 / e
-        S = np.where(observed, soft_threshold(TS, lam / eta), TS)
+        X = np.matmul(L, R.T, out=X_spare)
+        X_spare = X_prev
+        # (11a) S: soft threshold on Ω, free off Ω; T = PD − X + Y₂/η.
+        np.subtract(PD, X, out=T)
+        np.divide(Y2, e, out=S)
+        T += S
+        np.clip(T, -lam / eta, lam / eta, out=S)     # T − clip(T, ±τ) = soft threshold
+        S *= omega
+        np.subtract(T, S, out=S)
         # (11b) M: (ηX − Y₁)(ηI + μTᵀT)⁻¹ through the DCT.
-        M = temporal_solve(e * X - Y1, eta, mu) if mu > 0 else X - Y1 / e
+        np.multiply(X, e, out=W)
+        W -= Y1
+        if mu > 0:
+            M = temporal_solve(W, eta, mu)
+        else:
+            np.divide(W, e, out=M)
         # (13) U, V by Lemma 3, V using the new U.
         U = _orthonormal_maximiser(L @ (V @ R).T)
         V = _orthonormal_maximiser(R @ (U @ L).T)
         # Multipliers with the η of this iteration, then the schedule.
-        residual = PD - X - S
-        Y1 += e * (M - X)
-        Y2 += e * residual
+        np.subtract(PD, X, out=T)           # the residual PD − X − S
+        T -= S
+        residual_norm = np.linalg.norm(T)
+        np.subtract(M, X, out=W)
+        W *= e
+        Y1 += W
+        T *= e
+        Y2 += T
         eta = min(rho * eta, eta_max)
-        change = np.linalg.norm(X - X_prev) / (np.linalg.norm(X) or 1.0)
-        if np.linalg.norm(residual) / norm_PD <= tol and change <= tol:
+        np.subtract(X, X_prev, out=W)
+        change = np.linalg.norm(W) / (np.linalg.norm(X) or 1.0)
+        if residual_norm / norm_PD <= tol and change <= tol:
             converged = True
             break
     return TrnnResult(X=X.astype(np.float64), S=S.astype(np.float64), iterations=iterations,
