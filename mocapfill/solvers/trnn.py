@@ -242,7 +242,7 @@ def complete_paper(matrix: np.ndarray, observed: np.ndarray, *, rank: int | None
 
 def complete_lowrank(matrix: np.ndarray, observed: np.ndarray, *, rank: int | None = None,
                      d: int | None = None, lam: float | None = None, mu: float = 100.0,
-                     rho: float = 1.2, eta0: float = 0.1, eta_max: float = 1e10,
+                     rho: float = 1.2, eta0: float = 0.05, eta_max: float = 1e10,
                      tol: float = 1e-5, max_iter: int = 500, dtype: type = np.float32,
                      **_shared) -> np.ndarray:
     """TrNN converged from a low-rank warm start, its fill joined to the gap ends.
@@ -250,14 +250,14 @@ def complete_lowrank(matrix: np.ndarray, observed: np.ndarray, *, rank: int | No
     The global low-rank candidate of :func:`complete`: the warm start of
     :func:`~mocapfill.solvers.lowrank.low_rank_start` (subspace of the complete frames and
     per-frame least squares, or alternating least squares), then Algorithm 1 with d = m,
-    ρ = 1.2, η₀ = 0.1, ε = 1e−5 (MODEL.md) in float32, then the linear ramp that makes the
-    fill meet the observed samples on both sides of every interior gap.
+    ρ = 1.2, η₀ = 0.05, ε = 1e−5 (MODEL.md) in float32, then the linear ramp that makes
+    the fill meet the observed samples on both sides of every interior gap.
 
-    η₀ = 0.1 (was 1e−2): on WalkL_0001–0010 this fill alone averaged 2.52 mm against 2.67
-    (better on 9 of 10 files), with fewer iterations; η₀ = 1 was far worse (6.43 mm).
-    float32: the same fills to within the run-to-run spread of the iteration (WalkL_0001
-    1.80 vs 2.05 mm, 85_12 ml=40 9.6 vs 11.2 mm, 02_05 ml=40 2.0 vs 2.3 mm) at about 60 %
-    of the time per iteration.
+    η₀ (3-D error of this fill alone, mean over WalkL_0001–0010): 1e−2 2.67 mm, 0.03 2.34,
+    0.05 2.31, 0.1 2.54 (WalkL_0005 alone: 2.90, 2.46, 2.53, 4.50), 1 6.43; larger η₀ also
+    takes fewer iterations. float32 gives the same fills as float64 to within the spread
+    of the iteration (η₀ = 0.1: WalkL_0005 4.498 vs 4.483 mm; 85_12 ml=40 9.6 vs 11.2 mm)
+    at about 60 % of the time per iteration.
     """
     from .gapwise import GapSet, interior_gaps, join_ends, row_groups
     from .lowrank import low_rank_start
@@ -300,9 +300,9 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     observed samples at both ends of every gap:
 
     - ``trnn``: :func:`complete_lowrank` — warm start from the subspace of the complete
-      frames (ALS without them), Algorithm 1 converged (d = m, ρ = 1.2, η₀ = 0.1,
-      ε = 1e−5, float32), plus the end ramp. Alone: 1.6–4.5 mm on WalkL_0001–0010, mean
-      2.5 (pca 2.1–6.1, mean 3.5).
+      frames (ALS without them), Algorithm 1 converged (d = m, ρ = 1.2, η₀ = 0.05,
+      ε = 1e−5, float32), plus the end ramp. Alone: 1.7–3.7 mm on WalkL_0001–0010, mean
+      2.3 (pca 2.1–6.1, mean 3.5).
     - ``spline``, ``quintic``, ``septic``: interpolating splines of degree 3, 5, 7 along
       time. Measured on 85_02 (smooth, 120 Hz): degree 5 halves the cubic's error at
       mr = 0.4 (0.077 vs 0.156 mm) and degree 7 cuts it 5× at ml = 20; on 02_05 both
