@@ -86,43 +86,47 @@ def _n_components(s: np.ndarray, min_cum_sv: float) -> int:
     return int(np.searchsorted(np.cumsum(s), min_cum_sv * total * (1 - 1e-12)) + 1)
 
 
-def _right_singular(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _right_singular(A: np.ndarray | None = None, *, gram: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """Singular values and right singular vectors (rows of Vᵀ) of a tall A, descending.
 
-    From the eigendecomposition of the small Gram matrix AᵀA: the same subspaces as the
-    SVD of A at a fraction of its cost for frames ≫ columns (4499 × 123: 3 ms against
-    50 ms). Eigenvalues within rounding of zero (below 1e−12 of the largest: singular
-    values under 1e−6 of the largest, which the Gram matrix cannot resolve) are read as 0,
-    so an exactly low-rank A keeps its rank.
+    From the eigendecomposition of the small Gram matrix AᵀA (or ``gram`` given): the same
+    subspaces as the SVD of A at a fraction of its cost for frames ≫ columns (4499 × 123:
+    3 ms against 50 ms). Eigenvalues within rounding of zero (below 1e−12 of the largest:
+    singular values under 1e−6 of the largest, which the Gram matrix cannot resolve) are
+    read as 0, so an exactly low-rank A keeps its rank.
     """
-    values, vectors = np.linalg.eigh(A.T @ A)
+    values, vectors = np.linalg.eigh(A.T @ A if gram is None else gram)
     order = np.argsort(values)[::-1]
     values = values[order]
     values[values < 1e-12 * max(values[0], 0.0)] = 0.0
     return np.sqrt(values), vectors[:, order].T
 
 
-def _reconstruct(X: np.ndarray, i: int, predictors: list[int], train: np.ndarray,
-                 frames: np.ndarray, weights: np.ndarray, min_cum_sv: float,
-                 transform: str) -> np.ndarray:
-    """Predict marker i (3 columns of ``X``, frames × 3·markers) on ``frames``."""
+def _model(X: np.ndarray, i: int, predictors: list[int], train: np.ndarray,
+           weights: np.ndarray, min_cum_sv: float, transform: str) -> tuple:
+    """Fit the reconstruction of marker i from ``predictors`` on the ``train`` frames.
+
+    Returns what :func:`_predict` needs: the columns, the normalisation of N₀ and the
+    (columns × 3) map ``V₀ B Vᵀ`` restricted to i's coordinates.
+    """
     cols = np.concatenate([np.arange(3 * j, 3 * j + 3) for j in predictors + [i]])
     w = np.repeat(weights, 3)
     N = X[np.ix_(train, cols)]
-    N0 = N.copy()
-    N0[:, -3:] = 0.0
-    M0 = X[np.ix_(frames, cols)].copy()
-    M0[:, -3:] = 0.0
     mean_N = N.mean(axis=0)
-    mean_N0 = N0.mean(axis=0)
+    mean_N0 = mean_N.copy()
+    mean_N0[-3:] = 0.0
     std = N.std(axis=0)
     std[std == 0] = 1.0
     Nn = (N - mean_N) / std * w
-    N0n = (N0 - mean_N0) / std * w
-    M0n = (M0 - mean_N0) / std * w
-    scale = 1.0 / np.sqrt(max(len(train) - 1, 1))
-    s, Vt = _right_singular(Nn * scale)
-    s0, V0t = _right_singular(N0n * scale)
+    # N₀ is N with i's columns zeroed: after the same normalisation its Gram matrix is
+    # N's with those rows and columns zeroed, so one product serves both PCAs.
+    gram = (Nn.T @ Nn) / max(len(train) - 1, 1)
+    gram0 = gram.copy()
+    gram0[-3:, :] = 0.0
+    gram0[:, -3:] = 0.0
+    s, Vt = _right_singular(gram=gram)
+    s0, V0t = _right_singular(gram=gram0)
     k = max(_n_components(s, min_cum_sv), _n_components(s0, min_cum_sv))
     k = min(k, Vt.shape[0], V0t.shape[0])
     V = Vt[:k].T
@@ -130,9 +134,17 @@ def _reconstruct(X: np.ndarray, i: int, predictors: list[int], train: np.ndarray
     B = V.T @ V0
     if transform == "inverse":
         B = np.linalg.pinv(B)
-    R = ((M0n @ V0) @ B @ V.T)[:, -3:]
     # Only the gapped marker's columns are wanted (a far predictor's weight may be 0).
-    return mean_N[-3:] + R * std[-3:] / w[-3:]
+    return cols, mean_N0, std, w, (V0 @ B @ V.T)[:, -3:], mean_N[-3:]
+
+
+def _predict(X: np.ndarray, model: tuple, frames: np.ndarray) -> np.ndarray:
+    """Marker i on ``frames`` from the predictors' coordinates there (frames × 3)."""
+    cols, mean_N0, std, w, transfer, mean_i = model
+    M0 = X[np.ix_(frames, cols)]
+    M0[:, -3:] = 0.0
+    M0n = (M0 - mean_N0) / std * w
+    return mean_i + (M0n @ transfer) * std[-3:] / w[-3:]
 
 
 def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
@@ -144,6 +156,10 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
     others = np.array([j for j in range(k) if j != i], dtype=int)
     obs_i = mask[i]
     fill = np.full((n, 3), np.nan)
+    # Frame groups that end with the same predictors share one model (the training frames
+    # depend on the predictors only): on clips with many overlapping gaps this turns
+    # thousands of PCAs into tens.
+    models: dict[tuple[int, ...], tuple] = {}
 
     def solve(frames: np.ndarray, relax: bool, split: bool) -> None:
         avail = mask[others][:, frames].all(axis=1)
@@ -155,8 +171,11 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
                 w = np.append(weights[preds], mm_weight)
                 if np.all(w[:-1] == 0):
                     break
-                fill[frames] = _reconstruct(X, i, preds, np.flatnonzero(train), frames, w,
-                                            min_cum_sv, transform)
+                key = tuple(preds)
+                if key not in models:
+                    models[key] = _model(X, i, preds, np.flatnonzero(train), w, min_cum_sv,
+                                         transform)
+                fill[frames] = _predict(X, models[key], frames)
                 return
             gappy = [j for j in preds if not mask[j].all()]
             if not gappy:
