@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._linalg import linear_fill, soft_threshold, temporal_solve
+from ._linalg import linear_fill, temporal_solve
 
 
 @dataclass
