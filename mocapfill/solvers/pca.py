@@ -150,7 +150,7 @@ def _predict(X: np.ndarray, model: tuple, frames: np.ndarray) -> np.ndarray:
 def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
                  distal: np.ndarray, complete_markers: np.ndarray, backup_i: np.ndarray, *,
                  min_frames: int, mm_weight: float, min_cum_sv: float,
-                 transform: str) -> np.ndarray:
+                 transform: str, max_models: int | None = None) -> np.ndarray:
     """Predictions of marker i on its gap frames, (frames, 3), NaN elsewhere."""
     k, n = mask.shape
     others = np.array([j for j in range(k) if j != i], dtype=int)
@@ -172,6 +172,8 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
                 if np.all(w[:-1] == 0):
                     break
                 key = tuple(preds)
+                if key not in models and max_models is not None and len(models) >= max_models:
+                    break                   # budget spent: these frames take the backup
                 if key not in models:
                     models[key] = _model(X, i, preds, np.flatnonzero(train), w, min_cum_sv,
                                          transform)
@@ -203,7 +205,8 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, weight_scale: float = 
              mm_weight: float = 0.02, distal_threshold: float = 0.5,
              min_cum_sv: float = 0.99, min_frames: int = 10,
              subtract_mean_trajectory: bool = True, transform: str = "published",
-             rate: float | None = None, seed: int | None = None) -> np.ndarray:
+             max_models: int | None = None, rate: float | None = None,
+             seed: int | None = None) -> np.ndarray:
     """Fill gaps by Gløersen & Federolf's (2016) weighted-PCA method, strategy R2.
 
     Parameters
@@ -226,6 +229,12 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, weight_scale: float = 
         low-rank data, fragile on noisy data).
     rate, seed
         Shared pipeline options, ignored.
+    max_models
+        Most distinct predictor sets (PCA models) per gapped marker; frames beyond the
+        budget are filled by linear interpolation (ours; default unlimited). Clips whose
+        gaps overlap in many different combinations otherwise cost one PCA per
+        combination (a synthetic 6000-frame clip with 5 % gaps on every marker: 732 PCAs,
+        7 s); the default method's blend uses 8 per marker.
     """
     matrix, observed = as_problem(matrix, observed)
     m, n = matrix.shape
@@ -268,6 +277,7 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, weight_scale: float = 
         distal = ~finite | (d > distal_threshold * mean_d)
         fill = _fill_marker(X, mask, i, weights_all, distal, complete_markers,
                             backup[3 * i:3 * i + 3], min_frames=min_frames,
+                            max_models=max_models,
                             mm_weight=mm_weight, min_cum_sv=min_cum_sv, transform=transform)
         gap = ~mask[i]
         rows = slice(3 * i, 3 * i + 3)

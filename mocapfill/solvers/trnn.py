@@ -354,7 +354,9 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
         # is cheap and its errors are partly independent of TrNN's.
         from .pca import complete as pca
 
-        candidates["pca"] = pca
+        # A budget of PCA models per marker keeps clips with gaps overlapping in many
+        # combinations from costing one PCA each (validation judges what is left).
+        candidates["pca"] = partial(pca, max_models=8)
     completed, _ = blend(matrix, observed, candidates, default="trnn", seed=seed,
                          validation_fraction=validation_fraction)
     return completed

@@ -103,3 +103,19 @@ def test_rejects_bad_options():
         pca.complete(M[:-1], observed[:-1])
     with pytest.raises(TypeError):
         pca.complete(M, observed, bogus=1)
+
+
+def test_model_budget_leaves_the_rest_to_interpolation_and_keeps_observed():
+    rng = np.random.default_rng(4)
+    n, k = 400, 8
+    M = unit_rms(np.cumsum(rng.normal(size=(3 * k, n)), axis=1))
+    observed = np.ones(M.shape, dtype=bool)
+    # Every marker loses stretches at different times: many predictor combinations.
+    for j in range(k):
+        for start in rng.integers(5, n - 30, size=6):
+            observed[3 * j:3 * j + 3, start:start + 12] = False
+    full = pca.complete(masked(M, observed), observed)
+    budget = pca.complete(masked(M, observed), observed, max_models=1)
+    np.testing.assert_array_equal(budget[observed], M[observed])
+    assert np.isfinite(budget).all()
+    assert not np.allclose(full[~observed], budget[~observed])
