@@ -185,7 +185,10 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
                              solver_options)
         total[:, start:stop] += w * part
         weight[start:stop] += w
-    return np.where(observed, matrix, total / weight)
+    # In place: a 30-minute clip's matrix is 200 MB, and every copy counts.
+    total /= weight
+    np.copyto(total, matrix, where=observed)
+    return total
 
 
 def _fill_ends(values: np.ndarray, observed: np.ndarray, gap: Gap, ends: str) -> None:
@@ -263,7 +266,9 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     matrix, observed = motion.matrix(evidence)
     solved = complete_matrix(matrix, observed, options.method, rate=motion.rate,
                              **options.solver_options)
+    del matrix                      # long clips: free each full-size copy once it is used
     filled = motion.with_matrix(solved, np.ones_like(observed), evidence).positions
+    del solved, observed
 
     from .metrics import mm_per_unit
 
