@@ -1,5 +1,10 @@
 """C3D: read marker trajectories; write repairs as an in-place byte patch of the original.
 
+Why not the ``c3d`` package: py-c3d 0.6 fails on real files of the shared set
+(btk-sample15__FP1, btk-sample24) and offers no way to rewrite single samples in place,
+which the writer below needs; this parser reads every shared C3D file or rejects it with
+a reason.
+
 Reading
 -------
 The 512-byte header and the parameter section are parsed here (all three processor
