@@ -104,3 +104,44 @@ def test_walkl_default_beats_pca_on_average_and_holds_its_measured_level():
     assert mean_trnn <= 2.8
     assert mean_trnn < np.mean([by[(f, "pca")] for f in files])
     assert sum(by[(f, "trnn")] < by[(f, "pca")] for f in files) >= 8
+
+
+def test_float32_iteration_matches_float64_and_returns_float64():
+    rng = np.random.default_rng(5)
+    m, n, r = 30, 240, 4
+    t = np.arange(n) / 60.0
+    X_star = rng.normal(size=(m, r)) @ np.sin(np.outer(rng.uniform(0.5, 2, r), t) * 6)
+    observed = rng.random((m, n)) > 0.2
+    # ε = 1e−5 as the default method uses it (float32 cannot resolve much tighter).
+    kwargs = dict(rank=r, lam=100 / np.sqrt(n), rho=1.2, eta0=0.05, tol=1e-5, max_iter=400)
+    double = trnn(X_star, observed, **kwargs)
+    single = trnn(X_star, observed, dtype=np.float32, **kwargs)
+    assert single.X.dtype == np.float64 and single.converged
+    scale = np.linalg.norm(X_star)
+    assert np.linalg.norm(single.X - double.X) / scale < 1e-2
+    assert np.linalg.norm(single.X - X_star) / scale < 0.05
+    with pytest.raises(ValueError, match="dtype"):
+        trnn(X_star, observed, dtype=np.int32, **kwargs)
+
+
+def test_padding_to_a_fast_dct_length_keeps_the_shape_and_observed_entries():
+    from mocapfill.solvers.trnn import _fast_length, complete_lowrank
+
+    for n in (227, 409, 4300, 4499):      # primes and lengths with large prime factors
+        fast = _fast_length(n)
+        assert fast >= n and fast - n < 0.05 * n + 8
+        rest = fast
+        for p in (2, 3, 5):
+            while rest % p == 0:
+                rest //= p
+        assert rest == 1
+    rng = np.random.default_rng(6)
+    m, n = 12, 227
+    X = np.cumsum(rng.normal(size=(m, n)), axis=1)
+    X = (X - X.mean(axis=1, keepdims=True)) / X.std()
+    observed = np.ones((m, n), bool)
+    observed[3:6, 100:130] = False
+    out = complete_lowrank(np.where(observed, X, 0.0), observed, rank=3)
+    assert out.shape == (m, n)
+    np.testing.assert_array_equal(out[observed], X[observed])
+    assert np.isfinite(out).all()
