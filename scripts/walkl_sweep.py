@@ -1,0 +1,39 @@
+"""Score methods / solver options on the Gløersen–Federolf walking set (WalkL_0001–0010).
+
+Prints the 3-D RMS error (mm) over the interior gap samples of each file and the mean, one
+column per variant. Needs ../shared/data/walkl. Example (the η₀ sweep of docs/results.md):
+
+    OPENBLAS_NUM_THREADS=1 python scripts/walkl_sweep.py \
+        'trnn-lowrank:{"eta0": 0.01}' 'trnn-lowrank:{"eta0": 0.05}' 'pca:{}'
+"""
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+
+from mocapfill.bench import WALKL_FILES, _walkl_case
+from mocapfill.metrics import score
+from mocapfill.pipeline import RepairOptions, repair
+
+
+def main(specs: list[str]) -> None:
+    variants = []
+    for spec in specs:
+        method, _, options = spec.partition(":")
+        variants.append((method, json.loads(options or "{}")))
+    means = np.zeros(len(variants))
+    for name in WALKL_FILES:
+        truth, gapped = _walkl_case(name).load()
+        errors = []
+        for method, options in variants:
+            result = repair(gapped, RepairOptions(method=method, solver_options=options))
+            errors.append(score(truth, result.motion, gapped).rmse_3d_mm)
+        means += np.array(errors) / len(WALKL_FILES)
+        print(name, " ".join(f"{e:7.2f}" for e in errors), flush=True)
+    print("mean      ", " ".join(f"{e:7.2f}" for e in means))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:] or ["trnn-lowrank:{}"])
