@@ -91,8 +91,8 @@ def test_default_beats_spline_on_cmu_85_02_continuous_gaps():
 @pytest.mark.slow
 def test_walkl_default_beats_pca_on_average_and_holds_its_measured_level():
     # Issue 4's target is a mean <= 2.0 mm and below pca on every file; measured
-    # (docs/results.md): mean 2.60 mm against pca 3.49, pca better on 0008 and 0009.
-    # This guards the level reached; tighten it as the target is approached.
+    # (docs/results.md, second session): mean 2.52 mm against pca 3.51, below pca on all
+    # ten files. This guards the level reached; tighten it as the target is approached.
     from mocapfill import bench
 
     shared_file("walkl/WalkL.mat")
@@ -101,9 +101,11 @@ def test_walkl_default_beats_pca_on_average_and_holds_its_measured_level():
     by = {(r["case"], r["method"]): r["rmse_3d_mm"] for r in rows}
     files = sorted({case for case, _ in by})
     mean_trnn = np.mean([by[(f, "trnn")] for f in files])
-    assert mean_trnn <= 2.8
+    assert mean_trnn <= 2.6
     assert mean_trnn < np.mean([by[(f, "pca")] for f in files])
-    assert sum(by[(f, "trnn")] < by[(f, "pca")] for f in files) >= 8
+    # One file of slack: WalkL_0003 is won by 0.11 mm, and float32 products differ
+    # slightly between CPUs.
+    assert sum(by[(f, "trnn")] < by[(f, "pca")] for f in files) >= 9
 
 
 def test_float32_iteration_matches_float64_and_returns_float64():
