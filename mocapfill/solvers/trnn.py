@@ -334,7 +334,7 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     """
     from functools import partial
 
-    from .gapwise import blend, odd_spline_fill, regression_fill, rigid_fill
+    from .gapwise import blend, odd_spline_fill, regression_fill, rigid_fill, row_groups
     from .interp import spline
 
     trnn_options.pop("rate", None)
@@ -347,9 +347,12 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
         "septic": partial(odd_spline_fill, degree=7),
         "regression": regression_fill,
     }
-    if rigid_fill(matrix[:3, :2], observed[:3, :2]) is not None:
+    # The rigid-body and PCA fills need rows that are x, y, z of markers (one mask per
+    # marker); a channel matrix or a mask split within a marker gets the other fillers.
+    markers = row_groups(observed).shape[1] == 3
+    if markers:
         candidates["rigid"] = rigid_fill
-    if observed.all(axis=0).sum() >= 60:
+    if markers and observed.all(axis=0).sum() >= 60:
         # Gløersen & Federolf's PCA fill needs complete frames; where the clip has them it
         # is cheap and its errors are partly independent of TrNN's.
         from .pca import complete as pca

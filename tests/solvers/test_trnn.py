@@ -147,3 +147,15 @@ def test_padding_to_a_fast_dct_length_keeps_the_shape_and_observed_entries():
     assert out.shape == (m, n)
     np.testing.assert_array_equal(out[observed], X[observed])
     assert np.isfinite(out).all()
+
+
+def test_default_completes_rows_that_are_not_markers():
+    # 4 rows (not x, y, z triples) with 300 complete frames: the marker-only fillers
+    # (rigid body, PCA) must stay out instead of failing.
+    rng = np.random.default_rng(7)
+    X = np.cumsum(rng.normal(size=(4, 300)), axis=1)
+    observed = np.ones_like(X, dtype=bool)
+    observed[3, 100:140] = False
+    out = complete(X, observed)
+    assert np.isfinite(out).all()
+    np.testing.assert_array_equal(out[observed], X[observed])
