@@ -34,9 +34,9 @@ def as_problem(matrix: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np
 
 
 def soft_threshold(x: np.ndarray, tau: float | np.ndarray) -> np.ndarray:
-    """``sign(x)·max(|x| - tau, 0)`` entrywise (a new array; float32 stays float32)."""
-    x = _floating(x)
-    return np.sign(x) * np.maximum(np.abs(x) - x.dtype.type(tau), 0)
+    """``sign(x)·max(|x| - tau, 0)`` entrywise (a new array)."""
+    x = np.asarray(x, dtype=np.float64)
+    return np.sign(x) * np.maximum(np.abs(x) - tau, 0.0)
 
 
 def _floating(x: np.ndarray) -> np.ndarray:

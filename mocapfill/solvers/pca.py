@@ -86,17 +86,16 @@ def _n_components(s: np.ndarray, min_cum_sv: float) -> int:
     return int(np.searchsorted(np.cumsum(s), min_cum_sv * total * (1 - 1e-12)) + 1)
 
 
-def _right_singular(A: np.ndarray | None = None, *, gram: np.ndarray | None = None
-                    ) -> tuple[np.ndarray, np.ndarray]:
-    """Singular values and right singular vectors (rows of Vᵀ) of a tall A, descending.
+def _right_singular(gram: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Singular values and right singular vectors (rows of Vᵀ) of a tall A, descending,
+    from its small Gram matrix ``gram`` = AᵀA.
 
-    From the eigendecomposition of the small Gram matrix AᵀA (or ``gram`` given): the same
-    subspaces as the SVD of A at a fraction of its cost for frames ≫ columns (4499 × 123:
-    3 ms against 50 ms). Eigenvalues within rounding of zero (below 1e−12 of the largest:
-    singular values under 1e−6 of the largest, which the Gram matrix cannot resolve) are
-    read as 0, so an exactly low-rank A keeps its rank.
+    The same subspaces as the SVD of A at a fraction of its cost for frames ≫ columns
+    (4499 × 123: 3 ms against 50 ms). Eigenvalues within rounding of zero (below 1e−12 of
+    the largest: singular values under 1e−6 of the largest, which the Gram matrix cannot
+    resolve) are read as 0, so an exactly low-rank A keeps its rank.
     """
-    values, vectors = np.linalg.eigh(A.T @ A if gram is None else gram)
+    values, vectors = np.linalg.eigh(gram)
     order = np.argsort(values)[::-1]
     values = values[order]
     values[values < 1e-12 * max(values[0], 0.0)] = 0.0
@@ -125,8 +124,8 @@ def _model(X: np.ndarray, i: int, predictors: list[int], train: np.ndarray,
     gram0 = gram.copy()
     gram0[-3:, :] = 0.0
     gram0[:, -3:] = 0.0
-    s, Vt = _right_singular(gram=gram)
-    s0, V0t = _right_singular(gram=gram0)
+    s, Vt = _right_singular(gram)
+    s0, V0t = _right_singular(gram0)
     k = max(_n_components(s, min_cum_sv), _n_components(s0, min_cum_sv))
     k = min(k, Vt.shape[0], V0t.shape[0])
     V = Vt[:k].T
@@ -172,9 +171,9 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
                 if np.all(w[:-1] == 0):
                     break
                 key = tuple(preds)
-                if key not in models and max_models is not None and len(models) >= max_models:
-                    break                   # budget spent: these frames take the backup
                 if key not in models:
+                    if max_models is not None and len(models) >= max_models:
+                        break               # budget spent: these frames take the backup
                     models[key] = _model(X, i, preds, np.flatnonzero(train), w, min_cum_sv,
                                          transform)
                 fill[frames] = _predict(X, models[key], frames)

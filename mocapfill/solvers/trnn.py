@@ -65,12 +65,13 @@ def _spd_inverse(A: np.ndarray) -> np.ndarray:
     return np.linalg.inv(A)
 
 
-def _wide_svd(X: np.ndarray, rank: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _wide_svd(X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The thin SVD of a wide X (m ≤ n) from the eigendecomposition of the m × m X Xᵀ.
 
     About 10× cheaper than LAPACK's SVD for mocap shapes (123 × 4500). Right vectors
-    beyond ``rank`` are only used scaled by √σ (the factor R), which stays accurate even
-    where σ is too small for the vector itself to be; the float32 fast path uses it.
+    beyond the truncation rank are only used scaled by √σ (the factor R), which stays
+    accurate even where σ is too small for the vector itself to be; the float32 fast path
+    uses it.
     """
     values, vectors = np.linalg.eigh(X @ X.T)
     order = np.argsort(values)[::-1]
@@ -142,7 +143,7 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
 
     # Initialisation chosen by the prototype (MODEL.md): factors from the SVD of X₀.
     if dtype == np.float32 and m <= n:
-        Us, sv, Vts = _wide_svd(X, rank)
+        Us, sv, Vts = _wide_svd(X)
     else:
         Us, sv, Vts = np.linalg.svd(X, full_matrices=False)
     root = np.sqrt(sv[:d])
@@ -166,7 +167,7 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
     converged = False
     iterations = 0
     for iteration in range(1, max_iter + 1):
-        iterations = iteration
+        iterations = iteration              # (ruff B007: the loop variable is read after)
         X_prev = X
         e = dtype.type(eta)                 # keeps float32 products float32
         # W = M + PD − S + (Y₁ + Y₂)/η
