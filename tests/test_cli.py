@@ -143,3 +143,12 @@ def test_plot_command_writes_the_image(clip_files):
     assert result.exit_code == 0, result.output
     assert (clip_files / "p.png").read_bytes().startswith(b"\x89PNG")
     assert "MK01, MK04" in result.stderr
+
+
+def test_cli_method_names_match_the_solver_registry():
+    # The CLI keeps its own list so `mocapfill --help` need not import numpy; it must
+    # name exactly the registered methods.
+    from mocapfill.cli import METHOD_NAMES
+    from mocapfill.solvers import METHODS
+
+    assert set(METHOD_NAMES) == set(METHODS)
