@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+from .bench import SHARED_DATA
 
 # Clips of ../shared/data/cmu by name. 10_01 (801 frames) is the paper's 'score' motion;
 # the C3D clips are the nearest in length to its 'jump' (439) and 'boxing' (4840).

@@ -22,10 +22,9 @@ from pathlib import Path
 import numpy as np
 
 from . import formats
+from .bench import SHARED_DATA
 from .gaps import simulate_gaps
 from .motion import Motion
-
-SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 
 @dataclass
