@@ -114,18 +114,12 @@ def odd_spline_fill(matrix: np.ndarray, observed: np.ndarray, *, degree: int = 5
     decides. End gaps are held (as the cubic spline does); rows with too few samples are
     filled linearly.
     """
-    out = linear_fill(matrix, observed)
-    t = np.arange(matrix.shape[1], dtype=np.float64)
-    for row in range(matrix.shape[0]):
-        idx = np.flatnonzero(observed[row])
-        if idx.size < degree + 1 or idx.size == observed.shape[1]:
-            continue
-        inner = ~observed[row]
-        inner[:idx[0]] = False
-        inner[idx[-1] + 1:] = False
-        if inner.any():
-            out[row, inner] = make_interp_spline(t[idx], matrix[row, idx], k=degree)(t[inner])
-    return out
+    from .interp import _interpolate
+
+    def make(t_obs: np.ndarray, y_obs: np.ndarray):
+        return make_interp_spline(t_obs, y_obs, k=degree) if t_obs.size > degree else None
+
+    return _interpolate(matrix, observed, make)
 
 
 def _xyz(matrix: np.ndarray) -> np.ndarray:
