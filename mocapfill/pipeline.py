@@ -145,8 +145,14 @@ WINDOW_OVERLAP = 2000
 def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
                   solver_options: dict) -> np.ndarray:
     scale = UnitScale.fit(matrix, observed)
-    solved = get_method(method)(scale.forward(np.where(observed, matrix, 0.0)), observed,
-                                **solver_options)
+    try:
+        solved = get_method(method)(scale.forward(np.where(observed, matrix, 0.0)), observed,
+                                    **solver_options)
+    except (np.linalg.LinAlgError, FloatingPointError) as exc:
+        # A numerical breakdown (found by fuzzing: coordinates near the float32 limit in a
+        # corrupt C3D made an SVD fail) is a clean failure of this clip, not a traceback.
+        raise SolverError(f"method {method!r} broke down numerically on this clip ({exc}); "
+                          "check the file for corrupt or absurd coordinates") from None
     return scale.inverse(solved)
 
 
@@ -192,6 +198,20 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
     total /= weight
     np.copyto(total, matrix, where=observed)
     return total
+
+
+def _named(motion: Motion) -> str:
+    return f"{motion.path}: " if motion.path is not None else ""
+
+
+def _complete_clip(motion: Motion, matrix: np.ndarray, observed: np.ndarray,
+                   options: RepairOptions) -> np.ndarray:
+    """:func:`complete_matrix` with the options; a solver failure names the clip's file."""
+    try:
+        return complete_matrix(matrix, observed, options.method, rate=motion.rate,
+                               **options.solver_options)
+    except SolverError as exc:
+        raise SolverError(f"{_named(motion)}{exc}") from None
 
 
 def _fill_ends(values: np.ndarray, observed: np.ndarray, gap: Gap, ends: str) -> None:
@@ -267,8 +287,7 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
 
     evidence = np.flatnonzero(motion.fillable & motion.observed.any(axis=0))
     matrix, observed = motion.matrix(evidence)
-    solved = complete_matrix(matrix, observed, options.method, rate=motion.rate,
-                             **options.solver_options)
+    solved = _complete_clip(motion, matrix, observed, options)
     del matrix                      # long clips: free each full-size copy once it is used
     filled = motion.with_matrix(solved, np.ones_like(observed), evidence).positions
     del solved, observed
@@ -302,7 +321,8 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     # the input's values too.
     np.copyto(positions, motion.positions, where=~accepted[:, :, None])
     if not np.isfinite(positions[new_observed]).all():
-        raise SolverError(f"method {options.method!r} returned non-finite values")
+        raise SolverError(f"{_named(motion)}method {options.method!r} returned non-finite "
+                          "values")
     return RepairResult(motion.with_positions(positions, new_observed), outcomes,
                         time.perf_counter() - started)
 
@@ -357,8 +377,7 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
         pad = (-rows) % 3  # methods read rows in x/y/z triples; constant rows carry nothing
         matrix = np.vstack([values.T, np.zeros((pad, values.shape[0]))])
         mask = np.vstack([observed.T, np.ones((pad, values.shape[0]), bool)])
-        solved = complete_matrix(matrix, mask, options.method, rate=motion.rate,
-                                 **options.solver_options)[:rows].T
+        solved = _complete_clip(motion, matrix, mask, options)[:rows].T
         for column in np.flatnonzero(fill.any(axis=0)):
             for start, stop in missing_runs(observed[:, column]):
                 if fill[start, column] and (start == 0 or stop == values.shape[0]):

@@ -178,3 +178,18 @@ def test_one_marker_clip_is_filled_along_time():
     clip = smooth_clip(120, 1)
     result = repair(with_gap(clip, 0, 40, 60))
     assert result.motion.observed.all()
+
+
+def test_a_numerical_breakdown_of_the_method_is_a_clean_solver_error(monkeypatch):
+    # Fuzzing found a corrupt C3D (coordinates near 3e38) on which an SVD inside TrNN
+    # failed to converge; the repair must end in a SolverError, never a LinAlgError.
+    from mocapfill import pipeline
+    from mocapfill.errors import SolverError
+
+    def breaks_down(matrix, observed, **options):
+        raise np.linalg.LinAlgError("SVD did not converge")
+
+    monkeypatch.setattr(pipeline, "get_method", lambda name: breaks_down)
+    _, gapped = gapped_clip()
+    with pytest.raises(SolverError, match="broke down numerically.*SVD did not converge"):
+        repair(gapped, RepairOptions(method="trnn"))
