@@ -91,8 +91,18 @@ def temporal_solve(b: np.ndarray, eta: float, mu: float) -> np.ndarray:
     n = b.shape[-1]
     if n > 64 and _largest_prime_factor(n) > 64:
         return _banded_temporal_solve(b, eta, mu).astype(b.dtype, copy=False)
-    gamma = (1.0 / (eta + mu * second_difference_eigenvalues(n))).astype(b.dtype)
-    return idct(dct(b, type=2, norm="ortho", axis=-1) * gamma, type=2, norm="ortho", axis=-1)
+    gamma = (1.0 / (eta + mu * _cached_eigenvalues(n))).astype(b.dtype)
+    # One new array: the DCT's output is scaled and transformed back in place.
+    coefficients = dct(b, type=2, norm="ortho", axis=-1)
+    coefficients *= gamma
+    return idct(coefficients, type=2, norm="ortho", axis=-1, overwrite_x=True)
+
+
+@lru_cache(maxsize=8)
+def _cached_eigenvalues(n: int) -> np.ndarray:
+    values = second_difference_eigenvalues(n)
+    values.flags.writeable = False
+    return values
 
 
 @lru_cache(maxsize=32)

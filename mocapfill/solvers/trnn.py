@@ -60,8 +60,22 @@ def _orthonormal_maximiser(G: np.ndarray) -> np.ndarray:
 
 
 def _spd_inverse(A: np.ndarray) -> np.ndarray:
-    # d×d and well conditioned (I + 2η·Gram): an explicit inverse is far cheaper than a
-    # solve with thousands of right-hand sides, and accurate enough.
+    """Inverse of the d×d SPD matrix I + 2η·Gram, by Cholesky (LAPACK potrf + potri).
+
+    An explicit inverse is far cheaper than a solve with thousands of right-hand sides;
+    the Cholesky route is 2–4× cheaper than ``np.linalg.inv``'s LU (123 × 123 float32:
+    about 0.5 against 1–1.8 ms, which was a quarter of an 810-frame iteration). Falls
+    back to LU if rounding made A numerically indefinite.
+    """
+    from scipy.linalg import get_lapack_funcs
+
+    potrf, potri = get_lapack_funcs(("potrf", "potri"), (A,))
+    factor, info = potrf(A, lower=False, clean=False, overwrite_a=False)
+    if info == 0:
+        inverse, info = potri(factor, lower=False, overwrite_c=True)
+        if info == 0:
+            upper = np.triu(inverse)
+            return upper + np.triu(upper, 1).T
     return np.linalg.inv(A)
 
 
@@ -160,8 +174,8 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
     Y2 = np.zeros_like(X)
     eta = float(eta0)
     eye = np.eye(d, dtype=dtype)
-    # Work buffers: the updates below are the textbook expressions evaluated in place, in
-    # the same order (so the same rounding), without allocating m×n temporaries.
+    # Work buffers: the updates below are the textbook expressions evaluated in place,
+    # without allocating m×n temporaries.
     W, T, X_spare = np.empty_like(X), np.empty_like(X), np.empty_like(X)
 
     converged = False
@@ -181,13 +195,18 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
         R = (e * (W.T @ L) + V.T @ (U @ L)) @ _spd_inverse(eye + 2 * e * (L.T @ L))
         X = np.matmul(L, R.T, out=X_spare)
         X_spare = X_prev
-        # (11a) S: soft threshold on Ω, free off Ω; T = PD − X + Y₂/η.
+        # (11a) S: soft threshold on Ω, free off Ω; T = PD − X + Y₂/η. With C = P_Ω(clip(T,
+        # ±λ/η)), S = T − C, the residual PD − X − S is C − Y₂/η and the multiplier
+        # update Y₂ + η(PD − X − S) is η·C, so Y₂ is rewritten rather than accumulated.
         np.subtract(PD, X, out=T)
-        np.divide(Y2, e, out=S)
+        np.divide(Y2, e, out=S)             # S holds Y₂/η until the last line
         T += S
-        np.clip(T, -lam / eta, lam / eta, out=S)     # T − clip(T, ±τ) = soft threshold
-        S *= omega
-        np.subtract(T, S, out=S)
+        np.clip(T, -lam / eta, lam / eta, out=Y2)
+        Y2 *= omega                         # Y₂ holds C
+        np.subtract(Y2, S, out=S)           # the residual PD − X − S
+        residual_norm = np.linalg.norm(S)
+        np.subtract(T, Y2, out=S)
+        Y2 *= e
         # (11b) M: (ηX − Y₁)(ηI + μTᵀT)⁻¹ through the DCT.
         np.multiply(X, e, out=W)
         W -= Y1
@@ -198,15 +217,10 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
         # (13) U, V by Lemma 3, V using the new U.
         U = _orthonormal_maximiser(L @ (V @ R).T)
         V = _orthonormal_maximiser(R @ (U @ L).T)
-        # Multipliers with the η of this iteration, then the schedule.
-        np.subtract(PD, X, out=T)           # the residual PD − X − S
-        T -= S
-        residual_norm = np.linalg.norm(T)
+        # Y₁ with the η of this iteration (Y₂ was updated with S), then the schedule.
         np.subtract(M, X, out=W)
         W *= e
         Y1 += W
-        T *= e
-        Y2 += T
         eta = min(rho * eta, eta_max)
         np.subtract(X, X_prev, out=W)
         change = np.linalg.norm(W) / (np.linalg.norm(X) or 1.0)

@@ -159,3 +159,63 @@ def test_default_completes_rows_that_are_not_markers():
     out = complete(X, observed)
     assert np.isfinite(out).all()
     np.testing.assert_array_equal(out[observed], X[observed])
+
+
+def _textbook_trnn(D, observed, *, rank, lam, mu, rho, eta0, iterations):
+    """MODEL.md Algorithm 1 written as plainly as possible (dense T, explicit inverses)."""
+    m, n = D.shape
+    PD = np.where(observed, D, 0.0)
+    X = linear_fill(D, observed)
+    Us, sv, Vts = np.linalg.svd(X, full_matrices=False)
+    L, R = Us * np.sqrt(sv), Vts.T * np.sqrt(sv)
+    U, V = Us[:, :rank].T, Vts[:rank]
+    M, S = X.copy(), PD - X
+    Y1, Y2 = np.zeros_like(X), np.zeros_like(X)
+    T = second_difference_matrix(n)
+    eta = eta0
+    for _ in range(iterations):
+        W = M + PD - S + (Y1 + Y2) / eta
+        L = (eta * W @ R + U.T @ V @ R) @ np.linalg.inv(np.eye(m) + 2 * eta * R.T @ R)
+        R = (eta * W.T @ L + V.T @ U @ L) @ np.linalg.inv(np.eye(m) + 2 * eta * L.T @ L)
+        X = L @ R.T
+        Tm = PD - X + Y2 / eta
+        soft = np.sign(Tm) * np.maximum(np.abs(Tm) - lam / eta, 0.0)
+        S = np.where(observed, soft, Tm)
+        M = (eta * X - Y1) @ np.linalg.inv(eta * np.eye(n) + mu * T.T @ T)
+        P, _, Qt = np.linalg.svd(L @ (V @ R).T, full_matrices=False)
+        U = Qt.T @ P.T
+        P, _, Qt = np.linalg.svd(R @ (U @ L).T, full_matrices=False)
+        V = Qt.T @ P.T
+        Y1 = Y1 + eta * (M - X)
+        Y2 = Y2 + eta * (PD - X - S)
+        eta = rho * eta
+    return X, S
+
+
+def test_iteration_equals_the_textbook_updates():
+    # The in-place loop (buffers, Cholesky inverses, Y₂ rewritten as η·P_Ω(clip)) must be
+    # the same algorithm as the plain transcription of MODEL.md, step for step.
+    rng = np.random.default_rng(6)
+    m, n, r = 12, 50, 3
+    D = rng.normal(size=(m, r)) @ rng.normal(size=(r, n)) + 0.01 * rng.normal(size=(m, n))
+    observed = rng.random((m, n)) > 0.25
+    kwargs = dict(rank=r, lam=0.3, mu=5.0, rho=1.3, eta0=0.5)
+    X_ref, S_ref = _textbook_trnn(D, observed, iterations=8, **kwargs)
+    result = trnn(D, observed, max_iter=8, tol=0.0, **kwargs)
+    assert result.iterations == 8
+    np.testing.assert_allclose(result.X, X_ref, atol=1e-8, rtol=0)
+    np.testing.assert_allclose(result.S, S_ref, atol=1e-8, rtol=0)
+
+
+def test_spd_inverse_matches_lu_and_falls_back_on_an_indefinite_matrix():
+    from mocapfill.solvers.trnn import _spd_inverse
+
+    rng = np.random.default_rng(7)
+    G = rng.normal(size=(40, 9))
+    A = np.eye(9) + 2.0 * G.T @ G
+    for dtype, tol in ((np.float64, 1e-10), (np.float32, 1e-4)):
+        inverse = _spd_inverse(A.astype(dtype))
+        assert inverse.dtype == dtype
+        np.testing.assert_allclose(inverse @ A.astype(dtype), np.eye(9), atol=tol)
+    indefinite = np.diag([1.0, -2.0, 3.0])
+    np.testing.assert_allclose(_spd_inverse(indefinite), np.linalg.inv(indefinite))
