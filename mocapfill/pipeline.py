@@ -277,9 +277,8 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     if motion.n_frames < 2:
         raise NothingToRepair(f"a clip of {motion.n_frames} frame(s) cannot be repaired")
     if not (motion.observed[:, motion.fillable]).any():
-        where = f"{motion.path}: " if motion.path is not None else ""
-        raise NothingToRepair(f"{where}no marker has a single observed sample; nothing to "
-                              "fill from")
+        raise NothingToRepair(f"{_named(motion)}no marker has a single observed sample; "
+                              "nothing to fill from")
     gaps = find_gaps(motion)
     outcomes = [GapOutcome(g, _gap_status(g, motion, options), options.method) for g in gaps]
     if not any(o.status == FILLED for o in outcomes):
