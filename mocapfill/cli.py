@@ -26,8 +26,8 @@ EXIT_USAGE = 2
 EXIT_FAILED = 123
 EXIT_INTERRUPTED = 130
 
-METHOD_NAMES = ("trnn", "trnn-paper", "trnn-lowrank", "linear", "spline", "pchip", "pca", "svt",
-                "tsmc", "ialm", "psvt")
+METHOD_NAMES = ("trnn", "trnn-paper", "trnn-lowrank", "linear", "spline", "pchip", "pca",
+                "gaussian", "svt", "tsmc", "ialm", "psvt")
 
 
 def _fail(message: str, code: int) -> None:
@@ -583,8 +583,8 @@ def bench_accuracy(quick: bool, methods: str | None, json_path: Path | None,
     table of RMSE in mm and time in s."""
     from .bench import format_table, run_accuracy
 
-    chosen = (["trnn", "trnn-lowrank", "trnn-paper", "pca", "spline", "pchip", "linear",
-               "tsmc", "ialm", "psvt"] if methods is None
+    chosen = (["trnn", "trnn-lowrank", "trnn-paper", "pca", "gaussian", "spline", "pchip",
+               "linear", "tsmc", "ialm", "psvt"] if methods is None
               else [m.strip() for m in methods.split(",") if m.strip()])
     unknown = sorted(set(chosen) - set(METHOD_NAMES))
     if unknown:

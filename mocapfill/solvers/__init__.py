@@ -33,6 +33,7 @@ METHODS: dict[str, str] = {
     "spline": "mocapfill.solvers.interp:spline",
     "pchip": "mocapfill.solvers.interp:pchip",
     "pca": "mocapfill.solvers.pca:complete",
+    "gaussian": "mocapfill.solvers.gaussian:complete",
     "svt": "mocapfill.solvers.svt:complete",
     "tsmc": "mocapfill.solvers.tsmc:complete",
     "ialm": "mocapfill.solvers.rpca:ialm",

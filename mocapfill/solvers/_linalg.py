@@ -11,6 +11,7 @@
   matrix ``C``: ``T = Cᵀ diag(-4 sin²(iπ/(2n))) C``, hence
   ``TᵀT = Cᵀ diag(16 sin⁴(iπ/(2n))) C``, i = 0..n-1.
 - :func:`linear_fill` — row-wise linear interpolation along time, ends held.
+- :func:`spd_inverse` — the inverse of a symmetric positive definite matrix by Cholesky.
 
 Nothing here modifies its inputs.
 """
@@ -154,3 +155,23 @@ def linear_fill(matrix: np.ndarray, observed: np.ndarray) -> np.ndarray:
         # np.interp holds the first/last value beyond the data range.
         out[row, ~mask] = np.interp(t[~mask], t[mask], matrix[row, mask])
     return out
+
+
+def spd_inverse(A: np.ndarray) -> np.ndarray:
+    """Inverse of a symmetric positive definite matrix by Cholesky (LAPACK potrf + potri).
+
+    An explicit inverse is far cheaper than a solve with thousands of right-hand sides;
+    the Cholesky route is 2–4× cheaper than ``np.linalg.inv``'s LU (123 × 123 float32:
+    about 0.5 against 1–1.8 ms, which was a quarter of an 810-frame iteration). Falls
+    back to LU if rounding made A numerically indefinite.
+    """
+    from scipy.linalg import get_lapack_funcs
+
+    potrf, potri = get_lapack_funcs(("potrf", "potri"), (A,))
+    factor, info = potrf(A, lower=False, clean=False, overwrite_a=False)
+    if info == 0:
+        inverse, info = potri(factor, lower=False, overwrite_c=True)
+        if info == 0:
+            upper = np.triu(inverse)
+            return upper + np.triu(upper, 1).T
+    return np.linalg.inv(A)

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._linalg import linear_fill, temporal_solve
+from ._linalg import linear_fill, spd_inverse, temporal_solve
 
 
 @dataclass
@@ -57,26 +57,6 @@ def _orthonormal_maximiser(G: np.ndarray) -> np.ndarray:
     """argmax tr(U G) over U with U Uᵀ = I (Lemma 3): U = Q Pᵀ from G = P Σ Qᵀ."""
     P, _, Qt = np.linalg.svd(G, full_matrices=False)
     return Qt.T @ P.T
-
-
-def _spd_inverse(A: np.ndarray) -> np.ndarray:
-    """Inverse of the d×d SPD matrix I + 2η·Gram, by Cholesky (LAPACK potrf + potri).
-
-    An explicit inverse is far cheaper than a solve with thousands of right-hand sides;
-    the Cholesky route is 2–4× cheaper than ``np.linalg.inv``'s LU (123 × 123 float32:
-    about 0.5 against 1–1.8 ms, which was a quarter of an 810-frame iteration). Falls
-    back to LU if rounding made A numerically indefinite.
-    """
-    from scipy.linalg import get_lapack_funcs
-
-    potrf, potri = get_lapack_funcs(("potrf", "potri"), (A,))
-    factor, info = potrf(A, lower=False, clean=False, overwrite_a=False)
-    if info == 0:
-        inverse, info = potri(factor, lower=False, overwrite_c=True)
-        if info == 0:
-            upper = np.triu(inverse)
-            return upper + np.triu(upper, 1).T
-    return np.linalg.inv(A)
 
 
 def _wide_svd(X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -191,8 +171,8 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
         T -= S
         W += T
         # (10) L then R, each a d×d SPD system; Uᵀ(V R) avoids forming the m×n UᵀV.
-        L = (e * (W @ R) + U.T @ (V @ R)) @ _spd_inverse(eye + 2 * e * (R.T @ R))
-        R = (e * (W.T @ L) + V.T @ (U @ L)) @ _spd_inverse(eye + 2 * e * (L.T @ L))
+        L = (e * (W @ R) + U.T @ (V @ R)) @ spd_inverse(eye + 2 * e * (R.T @ R))
+        R = (e * (W.T @ L) + V.T @ (U @ L)) @ spd_inverse(eye + 2 * e * (L.T @ L))
         X = np.matmul(L, R.T, out=X_spare)
         X_spare = X_prev
         # (11a) S: soft threshold on Ω, free off Ω; T = PD − X + Y₂/η. With C = P_Ω(clip(T,
@@ -350,6 +330,8 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     from functools import partial
 
     from .gapwise import blend, odd_spline_fill, regression_fill, rigid_fill, row_groups
+    from .gaussian import MAX_ITERATION_COST, iteration_cost
+    from .gaussian import gap_fill as gaussian_fill
     from .interp import spline
 
     trnn_options.pop("rate", None)
@@ -362,6 +344,8 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
         "septic": partial(odd_spline_fill, degree=7),
         "regression": regression_fill,
     }
+    if iteration_cost(observed) <= MAX_ITERATION_COST:
+        candidates["gaussian"] = gaussian_fill
     # The rigid-body and PCA fills need rows that are x, y, z of markers (one mask per
     # marker); a channel matrix or a mask split within a marker gets the other fillers.
     markers = row_groups(observed).shape[1] == 3

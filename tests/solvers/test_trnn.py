@@ -208,14 +208,14 @@ def test_iteration_equals_the_textbook_updates():
 
 
 def test_spd_inverse_matches_lu_and_falls_back_on_an_indefinite_matrix():
-    from mocapfill.solvers.trnn import _spd_inverse
+    from mocapfill.solvers._linalg import spd_inverse
 
     rng = np.random.default_rng(7)
     G = rng.normal(size=(40, 9))
     A = np.eye(9) + 2.0 * G.T @ G
     for dtype, tol in ((np.float64, 1e-10), (np.float32, 1e-4)):
-        inverse = _spd_inverse(A.astype(dtype))
+        inverse = spd_inverse(A.astype(dtype))
         assert inverse.dtype == dtype
         np.testing.assert_allclose(inverse @ A.astype(dtype), np.eye(9), atol=tol)
     indefinite = np.diag([1.0, -2.0, 3.0])
-    np.testing.assert_allclose(_spd_inverse(indefinite), np.linalg.inv(indefinite))
+    np.testing.assert_allclose(spd_inverse(indefinite), np.linalg.inv(indefinite))

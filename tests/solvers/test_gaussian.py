@@ -1,0 +1,113 @@
+"""Gaussian conditional fill by EM: the E-step formula, the fit, and the blend candidate."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mocapfill.solvers import gaussian, interp
+from mocapfill.solvers.gapwise import interior_gaps, row_groups
+
+from ._synth import masked, rel, smooth_low_rank
+
+
+def random_spd(seed: int, m: int) -> np.ndarray:
+    A = np.random.default_rng(seed).standard_normal((m, m))
+    return A @ A.T + 0.5 * np.eye(m)
+
+
+def test_conditional_step_is_the_textbook_conditional_expectation():
+    m, n = 9, 40
+    rng = np.random.default_rng(0)
+    cov = random_spd(1, m)
+    Z = rng.standard_normal((m, n))
+    missing = rng.random((m, n)) < 0.3
+    missing[:, 5:12] = missing[:, [4]]       # a missing set shared by several frames
+    missing[:, 0] = False                    # a complete frame
+    expected = Z.copy()
+    scatter = np.zeros((m, m))
+    for t in range(n):
+        hid, seen = missing[:, t], ~missing[:, t]
+        if not hid.any():
+            continue
+        gain = cov[np.ix_(hid, seen)] @ np.linalg.inv(cov[np.ix_(seen, seen)])
+        expected[hid, t] = gain @ Z[seen, t]
+        scatter[np.ix_(hid, hid)] += cov[np.ix_(hid, hid)] - gain @ cov[np.ix_(seen, hid)]
+    got = np.where(missing, 123.0, Z)        # the values on M must not matter
+    out = gaussian.conditional_step(got, np.linalg.inv(cov), gaussian._missing_sets(missing))
+    np.testing.assert_allclose(got, expected, atol=1e-10)
+    np.testing.assert_allclose(out, scatter, atol=1e-10)
+
+
+def test_em_recovers_the_normal_law_from_incomplete_frames():
+    m, n = 6, 4000
+    rng = np.random.default_rng(2)
+    cov = random_spd(3, m)
+    mean = rng.standard_normal((m, 1))
+    X = mean + np.linalg.cholesky(cov) @ rng.standard_normal((m, n))
+    observed = rng.random((m, n)) > 0.3
+    observed[:, 0] = True
+    fit = gaussian.fit_normal(np.where(observed, X, 0.0), observed, start=np.zeros((m, n)),
+                              ridge=0.0, max_iter=200, tol=1e-10)
+    full_cov = np.cov(X, bias=True)
+    assert np.abs(fit.mean - X.mean(axis=1, keepdims=True)).max() < 0.05
+    assert np.abs(np.linalg.inv(fit.precision) - full_cov).max() < 0.1 * np.abs(full_cov).max()
+    # Without the conditional covariance in the M-step the variances of the hidden
+    # coordinates would shrink; EM keeps them.
+    ratio = np.diag(np.linalg.inv(fit.precision)) / np.diag(full_cov)
+    assert np.all(np.abs(ratio - 1) < 0.1)
+
+
+def affine_markers(seed: int, markers: int = 10, n: int = 500) -> np.ndarray:
+    """Random smooth motion; the last marker is an affine combination of three others."""
+    rng = np.random.default_rng(seed)
+    base = smooth_low_rank(seed, m=3 * (markers - 1), n=n, r=8).reshape(markers - 1, 3, n)
+    c = rng.standard_normal(3)
+    c /= c.sum()
+    last = np.tensordot(c, base[:3], axes=1)
+    return np.concatenate([base, last[None]]).reshape(3 * markers, n)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_fills_a_marker_that_is_a_linear_combination_of_others(seed):
+    M = affine_markers(seed)
+    observed = np.ones(M.shape, dtype=bool)
+    observed[-3:, 100:400] = False           # most of the clip
+    out = gaussian.complete(masked(M, observed), observed)
+    assert rel(out, M, ~observed) < 1e-3
+    np.testing.assert_array_equal(out[observed], M[observed])
+
+
+def test_gap_fill_joins_the_data_and_leaves_short_runs_to_the_spline():
+    M = affine_markers(4, n=600)
+    rng = np.random.default_rng(5)
+    M = M + 0.002 * rng.standard_normal(M.shape)      # noise: the raw fill would step
+    observed = np.ones(M.shape, dtype=bool)
+    observed[-3:, 200:320] = False
+    observed[3:6, 50:53] = False             # a 3-frame run: spline territory
+    data = masked(M, observed)
+    data_in = data.copy()
+    out = gaussian.gap_fill(np.where(observed, M, 0.0), observed)
+    np.testing.assert_array_equal(data_in[observed], data[observed])
+    np.testing.assert_array_equal(out[observed], M[observed])
+    np.testing.assert_allclose(out[3:6, 50:53], interp.spline(data, observed)[3:6, 50:53])
+    assert rel(out, M, ~observed) < 0.01
+    # No jump at the gap ends: the first and last filled steps are of the size of the
+    # data's own frame-to-frame steps.
+    typical = np.abs(np.diff(M[-3:], axis=1)).max()
+    assert np.abs(out[-3:, 200] - M[-3:, 199]).max() <= 1.5 * typical
+    assert np.abs(M[-3:, 320] - out[-3:, 319]).max() <= 1.5 * typical
+
+
+def test_random_occlusion_is_over_the_cost_budget_and_marker_gaps_are_not():
+    m, n = 3 * 41, 2000
+    rng = np.random.default_rng(6)
+    gaps = np.ones((m, n), dtype=bool)
+    for j in range(10):
+        start = int(rng.integers(1, n - 60))
+        gaps[3 * j:3 * j + 3, start:start + 60] = False
+    assert gaussian.iteration_cost(gaps) <= gaussian.MAX_ITERATION_COST
+    # 60 % of the markers hidden at random in every frame: runs of every length.
+    hit = rng.random((41, n)).argsort(axis=0) < 25
+    random = ~np.repeat(hit, 3, axis=0)
+    assert gaussian.iteration_cost(random) > gaussian.MAX_ITERATION_COST
+    assert len(interior_gaps(random, row_groups(random))) > 1000
