@@ -20,9 +20,11 @@ missing set, so random occlusions (one pattern per frame) cost no Python loop pe
 
 This is the model behind the PCA fills of biomechanics (Gløersen & Federolf 2016 regress
 on a truncated eigenbasis of Σ) with the full covariance instead, fitted on every frame
-rather than on the complete ones only. Measured (``docs/results.md``): on the
-Gløersen–Federolf walking set it fills long gaps better than TrNN (mean 2.13 against
-2.31 mm) from the same low-rank start.
+rather than on the complete ones only. Measured (``docs/results.md``, fourth session): on
+the Gløersen–Federolf walking set it fills long gaps better than TrNN (mean 3-D error 2.11
+against 2.31 mm; 2.00 smoothed as in :func:`gap_fill`), on the CMU clips' 10-marker gaps
+worse (85_02 ml = 40: 60 against 59 mm, 10_01 ml = 40: 17 against 7.9), so the default
+blends both.
 """
 from __future__ import annotations
 
@@ -32,12 +34,14 @@ import numpy as np
 
 from ._linalg import spd_inverse
 
-# The Gaussian candidate is offered when one EM iteration's work on the missing sets (their
-# inverses and the frames' corrections, in multiply-adds) stays under this: random
-# occlusions of many markers give nearly every frame its own large missing set (85_12 at
-# mr = 0.6 with runs under 5 frames held: 4264 sets, 1.1e8, 0.2 s per iteration), and there
-# the splines win anyway.
-MAX_ITERATION_COST = 2e7
+# The Gaussian candidate is offered when one EM iteration stays within both budgets
+# (multiply-adds). The missing sets: random occlusions of many markers give nearly every
+# frame its own large set (85_12 at mr = 0.6 with runs under 5 frames held: 4264 sets,
+# 1.1e8, 0.2 s per iteration), and there the splines win anyway. The covariance and the
+# precision products (2·m²·n): 3e7 on an 810-frame clip of 41 markers, 1.4e8 on 4500
+# frames; 300 markers over a 12000-frame window would be 1.6e10.
+MAX_SET_COST = 2e7
+MAX_DENSE_COST = 1e9
 
 # Frames whose missing blocks are gathered into one batched solve at a time (memory:
 # chunk · s² floats for missing sets of size s).
@@ -117,8 +121,8 @@ def fit_normal(matrix: np.ndarray, observed: np.ndarray, *, start: np.ndarray,
         fill: EM converges linearly; from a linear interpolation it needs ~100 iterations
         for what 30 give from a rank-15 start on the walking set).
     ridge
-        δ: Σ + δ·mean(diag Σ)·I. 1e−4 blurs long-gap fills (walking set 2.29 against
-        2.12 mm at 1e−5); from 1e−6 down nothing changes.
+        δ: Σ + δ·mean(diag Σ)·I. Walking set, unsmoothed: 1e−4 2.29 mm (it blurs long-gap
+        fills), 3e−5 2.16, 1e−5 2.12, 3e−6–1e−7 2.12–2.14.
     max_iter, tol
         At most ``max_iter`` EM iterations; stop earlier when no filled entry moves by
         more than ``tol`` (unit-RMS scale).
@@ -189,14 +193,21 @@ def _held_short_runs(observed: np.ndarray, groups: np.ndarray, min_gap: int) -> 
     return held
 
 
-def iteration_cost(observed: np.ndarray, *, min_gap: int = 5) -> float:
-    """Multiply-adds of one EM iteration on the missing sets left by :func:`gap_fill`."""
+def iteration_cost(observed: np.ndarray, *, min_gap: int = 5) -> tuple[float, float]:
+    """Multiply-adds of one EM iteration of :func:`gap_fill`: (missing sets, dense part)."""
     from .gapwise import row_groups
 
     held = _held_short_runs(observed, row_groups(observed), min_gap)
-    m = observed.shape[0]
-    return float(sum(p.counts.size * p.rows.shape[1] ** 3 + p.frames.size * p.rows.shape[1] * m
-                     for p in _missing_sets(~held)))
+    m, n = observed.shape
+    sets = sum(p.counts.size * p.rows.shape[1] ** 3 + p.frames.size * p.rows.shape[1] * m
+               for p in _missing_sets(~held))
+    return float(sets), 2.0 * m * m * n
+
+
+def affordable(observed: np.ndarray, *, min_gap: int = 5) -> bool:
+    """Whether :func:`gap_fill` stays within the iteration budgets on this mask."""
+    sets, dense = iteration_cost(observed, min_gap=min_gap)
+    return sets <= MAX_SET_COST and dense <= MAX_DENSE_COST
 
 
 def gap_fill(matrix: np.ndarray, observed: np.ndarray, *, min_gap: int = 5,
