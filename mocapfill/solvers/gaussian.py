@@ -246,7 +246,7 @@ def gap_fill(matrix: np.ndarray, observed: np.ndarray, *, min_gap: int = 5,
         rows = groups[g]
         lo, hi = max(0, a - 1 - reach), min(n, b + 1 + reach)
         track = _smooth(filled[rows, lo:hi], sigma)
-        before = matrix[rows, a - 1] - track[:, a - 1 - lo]
-        after = matrix[rows, b] - track[:, b - lo]
+        before = base[rows, a - 1] - track[:, a - 1 - lo]
+        after = base[rows, b] - track[:, b - lo]
         out[rows, a:b] = track[:, a - lo:b - lo] + ramp(before, after, b - a)
     return out
