@@ -218,16 +218,17 @@ def gap_fill(matrix: np.ndarray, observed: np.ndarray, *, min_gap: int = 5,
       the blend fills them with splines anyway, and random occlusions would otherwise
       give every frame its own large missing set (a solve of that size per frame).
     - The conditional expectation carries the noise of every marker it is read from, and
-      at the gap ends it steps from the data to a prediction. Each long interior gap's
-      trajectory is therefore smoothed along time (Gaussian, ``sigma`` frames) together
-      with the 4σ observed frames on either side, and joined exactly to the samples just
-      outside the gap by the linear ramp of what is left of the offsets there. Measured
-      on the walking set (mean 3-D error, WalkL_0001–0010): the raw fill 2.12 mm, σ = 1
-      2.02, σ = 1.25–1.5 2.02, σ = 2 2.04, σ = 4 2.63; ramping the offset between the data
-      and the marker's prediction at the gap ends instead (as if it were hidden there)
-      2.30 — those offsets do not persist into the gap.
+      at the gap ends it steps from the data to a prediction. The fill is therefore
+      smoothed along time (Gaussian, ``sigma`` frames), across each gap's ends into the
+      observed frames beside it, and every interior gap is joined exactly to the samples
+      just outside it by the linear ramp of what is left of the offsets there
+      (:func:`~mocapfill.solvers.gapwise.join_ends`). Measured on the walking set (mean
+      3-D error, WalkL_0001–0010): the raw fill 2.12 mm, σ = 1 2.02, σ = 1.25–1.5 2.02,
+      σ = 2 2.04, σ = 4 2.63; ramping the offset between the data and the marker's
+      prediction at the gap ends instead (as if it were hidden there) 2.30 — those
+      offsets do not persist into the gap.
     """
-    from .gapwise import interior_gaps, ramp, row_groups
+    from .gapwise import GapSet, interior_gaps, join_ends, row_groups
     from .interp import spline
     from .lowrank import low_rank_start
     from .trnn import paper_rank
@@ -239,14 +240,5 @@ def gap_fill(matrix: np.ndarray, observed: np.ndarray, *, min_gap: int = 5,
         return base
     start = low_rank_start(base, held, rank=paper_rank(base, held, rank))
     filled = fit_normal(base, held, start=start, **fit_options).filled
-    out = filled.copy()
-    n = filled.shape[1]
-    reach = int(np.ceil(4 * sigma))
-    for g, a, b in interior_gaps(held, groups):
-        rows = groups[g]
-        lo, hi = max(0, a - 1 - reach), min(n, b + 1 + reach)
-        track = _smooth(filled[rows, lo:hi], sigma)
-        before = base[rows, a - 1] - track[:, a - 1 - lo]
-        after = base[rows, b] - track[:, b - lo]
-        out[rows, a:b] = track[:, a - lo:b - lo] + ramp(before, after, b - a)
-    return out
+    return join_ends(_smooth(filled, sigma), base, held,
+                     GapSet(groups, interior_gaps(held, groups)))
