@@ -53,7 +53,7 @@ NOT_DISCOVERED = frozenset({".txt"})
 # workers on N cores do not each start N threads and fight over the cores.
 SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
                    "MKL_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1",
-                   "NUMEXPR_NUM_THREADS": "1"}
+                   "NUMEXPR_NUM_THREADS": "1", "MOCAPFILL_THREADS": "1"}
 
 DASK_MISSING = ("--scheduler needs dask.distributed, which is not installed: "
                 "pip install mocapfill[dask]")

@@ -152,3 +152,11 @@ def test_cli_method_names_match_the_solver_registry():
     from mocapfill.solvers import METHODS
 
     assert set(METHOD_NAMES) == set(METHODS)
+
+
+def test_a_bad_thread_count_is_a_usage_error_and_writes_nothing(clip_files, monkeypatch):
+    monkeypatch.setenv("MOCAPFILL_THREADS", "zero")
+    result = run("repair", clip_files / "gapped.npz", clip_files / "out.npz")
+    assert result.exit_code == 2
+    assert result.stderr.count("\n") == 1 and "MOCAPFILL_THREADS" in result.stderr
+    assert not (clip_files / "out.npz").exists()

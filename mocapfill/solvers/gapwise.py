@@ -30,6 +30,7 @@ single row when the mask is not organised in whole markers).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from typing import Callable
 
 import numpy as np
@@ -38,6 +39,7 @@ from scipy.optimize import nnls
 
 from ..gaps import missing_runs
 from ._linalg import linear_fill
+from ._threads import run_all
 
 Candidate = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
@@ -422,16 +424,26 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
             train = trial
             kept.append(((g, s, t), source))
         hidden = kept
-        fills = [fn(np.where(train, matrix, 0.0), train) for fn in candidates.values()]
+    # Every candidate runs twice, on the validation mask and on the real one; the runs are
+    # independent, so they share the cores (each candidate's two runs side by side, in
+    # the candidates' order: the costly global fills come first).
+    jobs = [partial(fn, matrix, observed) for fn in candidates.values()]
+    if hidden:
+        blinded = np.where(train, matrix, 0.0)
+        trials = [partial(fn, blinded, train) for fn in candidates.values()]
+        jobs = [job for pair in zip(trials, jobs) for job in pair]
+    done = run_all(jobs)
+    fills = done[1::2] if hidden else done
+    if hidden:
+        trial_fills = done[0::2]
         for (g, a, b), source in hidden:
             rows = groups[g]
             truth = matrix[rows, a:b].ravel()
-            E = np.stack([f[rows, a:b].ravel() - truth for f in fills], axis=1)
+            E = np.stack([f[rows, a:b].ravel() - truth for f in trial_fills], axis=1)
             errors.setdefault(length_class(b - a), []).append(E)
             own.setdefault(source, []).append(E)
     weights = blend_weights(errors, len(names))
 
-    fills = [fn(matrix, observed) for fn in candidates.values()]
     fallback = np.eye(len(names))[names.index(default)]
     prior_w = np.array([(prior or {}).get(name, 0.0) for name in names])
     if prior_w.sum() > 0:
