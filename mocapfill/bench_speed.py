@@ -2,8 +2,9 @@
 
 Every case times the real command, ``mocapfill repair IN OUT``, in a fresh Python process
 (start-up, reading and writing included): min / median / max wall time over ``runs`` runs
-and the peak resident memory of the child. The solver is also timed in-process to report
-iterations, milliseconds per iteration and the floor computed for one iteration on this
+and the peak resident memory of the child, which runs the candidate fills side by side on
+the cores as users get it. The solver is also timed in-process, one candidate at a time,
+to report iterations, milliseconds per iteration and the floor computed for one iteration on this
 machine (its FLOPs at the measured matrix-product rate plus its memory passes at the
 measured copy bandwidth plus its temporal solve), and the same clip is repaired with
 ``trnn-paper`` and ``tsmc`` for a side-by-side ratio.
@@ -115,8 +116,14 @@ def _timed(fn) -> float:
 
 
 def _solver_stats(path: Path, method: str) -> tuple[int | None, float | None]:
-    """Iterations and ms per iteration of the TrNN iterations for one repair, in-process."""
+    """Iterations and ms per iteration of the TrNN iterations for one repair, in-process.
+
+    The candidates run one after the other here (``MOCAPFILL_THREADS=1``): the floor is
+    one core's, and two solves side by side would share the memory bandwidth and caches.
+    The wall times come from the command as users run it, threads included.
+    """
     from .solvers import trnn as trnn_module
+    from .solvers._threads import VARIABLE
 
     calls: list[tuple[int, float]] = []
     original = trnn_module.trnn
@@ -128,12 +135,18 @@ def _solver_stats(path: Path, method: str) -> tuple[int | None, float | None]:
         return result
 
     trnn_module.trnn = recording
+    saved = os.environ.get(VARIABLE)
+    os.environ[VARIABLE] = "1"
     try:
         from .pipeline import RepairOptions, repair
 
         repair(formats.read(path), RepairOptions(method=method))
     finally:
         trnn_module.trnn = original
+        if saved is None:
+            del os.environ[VARIABLE]
+        else:
+            os.environ[VARIABLE] = saved
     iterations = sum(c[0] for c in calls)
     if not iterations:
         return None, None
