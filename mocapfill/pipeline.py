@@ -17,6 +17,7 @@ from .gaps import Gap, find_gaps, missing_runs
 from .motion import Motion
 from .scaling import UnitScale
 from .solvers import get_method
+from .solvers._threads import release_memory
 
 ENDS = ("leave", "hold", "extrapolate")
 SPACES = ("positions", "channels")
@@ -194,6 +195,8 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
                              solver_options)
         total[:, start:stop] += w * part
         weight[start:stop] += w
+        del part
+        release_memory()            # the window's freed arrays, back to the system
     # In place: a 30-minute clip's matrix is 200 MB, and every copy counts.
     total /= weight
     np.copyto(total, matrix, where=observed)

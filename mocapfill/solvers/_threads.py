@@ -12,6 +12,7 @@ already fill every core with one file each.
 """
 from __future__ import annotations
 
+import functools
 import os
 import threading
 from collections.abc import Sequence
@@ -43,6 +44,30 @@ def thread_count() -> int:
     return count
 
 
+def release_memory() -> None:
+    """Hand the C heap's free pages back to the system (glibc's ``malloc_trim``).
+
+    Each thread allocates from its own malloc arena, and freed arrays of a few MB stayed
+    there: on a long clip solved in windows the resident memory crept up window after
+    window (a 40,000-frame clip: 440 → 760 MB). A no-op where the C library has no
+    ``malloc_trim`` (not glibc).
+    """
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
+
+
+@functools.lru_cache(maxsize=1)
+def _malloc_trim():
+    import ctypes
+
+    try:
+        # The process's own symbols: the C library on Linux, without searching for it.
+        return ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError, TypeError):   # no malloc_trim; Windows has no CDLL(None)
+        return None
+
+
 def run_all(jobs: Sequence[Callable[[], T]], threads: int | None = None) -> list[T]:
     """``[job() for job in jobs]``, computed by up to ``threads`` threads.
 
@@ -69,6 +94,7 @@ def run_all(jobs: Sequence[Callable[[], T]], threads: int | None = None) -> list
                 results[index] = jobs[index]()
             except BaseException as exc:  # re-raised in the calling thread below
                 errors[index] = exc
+            release_memory()            # this job's temporaries, not kept in its arena
 
     workers = [threading.Thread(target=work, daemon=True, name=f"mocapfill-{k}")
                for k in range(min(threads, len(jobs)))]

@@ -371,6 +371,14 @@ class BlendReport:
     pseudo_gaps: int
 
 
+def _stand_in_errors(fill_fn: Candidate, blinded: np.ndarray, train: np.ndarray,
+                     matrix: np.ndarray, spans: list[tuple[np.ndarray, int, int]]
+                     ) -> list[np.ndarray]:
+    """A candidate's errors (fill − data) on each stand-in, from its validation run."""
+    fill = fill_fn(blinded, train)
+    return [fill[rows, a:b].ravel() - matrix[rows, a:b].ravel() for rows, a, b in spans]
+
+
 def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candidate], *,
           default: str, seed: int = 0, validation_fraction: float = 0.1,
           prior: dict[str, float] | None = None, prior_share: float = 0.5,
@@ -426,20 +434,21 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         hidden = kept
     # Every candidate runs twice, on the validation mask and on the real one; the runs are
     # independent, so they share the cores (each candidate's two runs side by side, in
-    # the candidates' order: the costly global fills come first).
+    # the candidates' order: the costly global fills come first). A validation run keeps
+    # only its errors on the stand-ins, not its full fill.
     jobs = [partial(fn, matrix, observed) for fn in candidates.values()]
     if hidden:
         blinded = np.where(train, matrix, 0.0)
-        trials = [partial(fn, blinded, train) for fn in candidates.values()]
+        spans = [(groups[g], a, b) for (g, a, b), _ in hidden]
+        trials = [partial(_stand_in_errors, fn, blinded, train, matrix, spans)
+                  for fn in candidates.values()]
         jobs = [job for pair in zip(trials, jobs) for job in pair]
     done = run_all(jobs)
     fills = done[1::2] if hidden else done
     if hidden:
-        trial_fills = done[0::2]
-        for (g, a, b), source in hidden:
-            rows = groups[g]
-            truth = matrix[rows, a:b].ravel()
-            E = np.stack([f[rows, a:b].ravel() - truth for f in trial_fills], axis=1)
+        trial_errors = done[0::2]
+        for index, ((_, a, b), source) in enumerate(hidden):
+            E = np.stack([errors_k[index] for errors_k in trial_errors], axis=1)
             errors.setdefault(length_class(b - a), []).append(E)
             own.setdefault(source, []).append(E)
     weights = blend_weights(errors, len(names))
