@@ -433,9 +433,9 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
             kept.append(((g, s, t), source))
         hidden = kept
     # Every candidate runs twice, on the validation mask and on the real one; the runs are
-    # independent, so they share the cores (each candidate's two runs side by side, in
-    # the candidates' order: the costly global fills come first). A validation run keeps
-    # only its errors on the stand-ins, not its full fill.
+    # independent, so they share the cores: each candidate's two runs side by side, in the
+    # candidates' order (the default lists TrNN, the costliest, first). A validation run
+    # keeps only its errors on the stand-ins, not its full fill.
     jobs = [partial(fn, matrix, observed) for fn in candidates.values()]
     if hidden:
         blinded = np.where(train, matrix, 0.0)
