@@ -31,8 +31,8 @@ def main(specs: list[str]) -> None:
             result = repair(gapped, RepairOptions(method=method, solver_options=options))
             errors.append(score(truth, result.motion, gapped).rmse_3d_mm)
         means += np.array(errors) / len(WALKL_FILES)
-        print(name, " ".join(f"{e:7.2f}" for e in errors), flush=True)
-    print("mean      ", " ".join(f"{e:7.2f}" for e in means))
+        print(name, " ".join(f"{e:7.4f}" for e in errors), flush=True)
+    print("mean      ", " ".join(f"{e:7.4f}" for e in means))
 
 
 if __name__ == "__main__":

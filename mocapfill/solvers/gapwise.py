@@ -115,13 +115,29 @@ def odd_spline_fill(matrix: np.ndarray, observed: np.ndarray, *, degree: int = 5
     cubic on smooth 120 Hz motion and far worse on noisy or abrupt motion; validation
     decides. End gaps are held (as the cubic spline does); rows with too few samples are
     filled linearly.
+
+    Near the clip's ends a high-degree interpolant has too little data on one side and
+    swings: a gap with fewer than (degree + 1)/2 observed samples before or after it in its
+    row takes the cubic spline instead. Measured on 85_12 at mr = 0.2 (seed 0): one
+    2-frame gap at frames 1–2 held 98 % of the quintic's squared error over all 2-frame
+    gaps (7.8e−3 against the cubic's 1.3e−4); validation stand-ins almost never fall
+    there, so the blend had trusted the quintic for that length class.
     """
-    from .interp import _interpolate
+    from .interp import _interpolate, spline
 
     def make(t_obs: np.ndarray, y_obs: np.ndarray):
         return make_interp_spline(t_obs, y_obs, k=degree) if t_obs.size > degree else None
 
-    return _interpolate(matrix, observed, make)
+    out = _interpolate(matrix, observed, make)
+    support = (degree + 1) // 2
+    seen = np.asarray(observed, dtype=bool)
+    counts = np.cumsum(seen, axis=1)
+    before = counts - seen                   # observed samples strictly before each frame
+    after = counts[:, -1:] - counts          # and strictly after it
+    weak = ~seen & (before >= 1) & (after >= 1) & ((before < support) | (after < support))
+    if weak.any():
+        out[weak] = spline(matrix, observed)[weak]
+    return out
 
 
 def _xyz(matrix: np.ndarray) -> np.ndarray:

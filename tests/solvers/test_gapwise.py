@@ -50,3 +50,26 @@ def test_stand_ins_respect_the_budget_on_a_crowded_mask():
     for fraction in (0.02, 0.1):
         gapset, chosen = _stand_ins(observed, seed=1, fraction=fraction)
         _check_stand_ins(observed, gapset, chosen, fraction)
+
+
+def test_odd_spline_fill_takes_the_cubic_where_one_side_lacks_support():
+    from scipy.interpolate import make_interp_spline
+
+    from mocapfill.solvers.gapwise import odd_spline_fill
+    from mocapfill.solvers.interp import spline
+
+    n = 200
+    t = np.arange(n, dtype=float)
+    row = np.sin(t / 9.0) + 0.3 * np.cos(t / 4.0)
+    observed = np.ones((1, n), bool)
+    observed[0, 1:3] = False         # one sample before it: too little for degree 5
+    observed[0, 100:103] = False     # well inside
+    observed[0, n - 4:n - 2] = False  # two samples after it
+    matrix = np.where(observed, row, np.nan)
+    out = odd_spline_fill(matrix, observed, degree=5)
+    cubic = spline(matrix, observed)
+    quintic = make_interp_spline(t[observed[0]], row[observed[0]], k=5)(t)
+    for a, b in ((1, 3), (n - 4, n - 2)):
+        np.testing.assert_array_equal(out[0, a:b], cubic[0, a:b])
+    np.testing.assert_allclose(out[0, 100:103], quintic[100:103], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(out[observed], row[observed[0]])
