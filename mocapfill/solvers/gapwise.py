@@ -120,7 +120,7 @@ def odd_spline_fill(matrix: np.ndarray, observed: np.ndarray, *, degree: int = 5
     swings: a gap with fewer than (degree + 1)/2 observed samples before or after it in its
     row takes the cubic spline instead. Measured on 85_12 at mr = 0.2 (seed 0): one
     2-frame gap at frames 1–2 held 98 % of the quintic's squared error over all 2-frame
-    gaps (7.8e−3 against the cubic's 1.3e−4); validation stand-ins almost never fall
+    gaps (squared error 1.0e−2 against the cubic's 1.3e−4); stand-ins almost never fall
     there, so the blend had trusted the quintic for that length class.
     """
     from .interp import _interpolate, spline
