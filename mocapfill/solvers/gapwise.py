@@ -113,31 +113,37 @@ def odd_spline_fill(matrix: np.ndarray, observed: np.ndarray, *, degree: int = 5
 
     Degree 5 or 7 (``scipy.interpolate.make_interp_spline``) is far more accurate than a
     cubic on smooth 120 Hz motion and far worse on noisy or abrupt motion; validation
-    decides. End gaps are held (as the cubic spline does); rows with too few samples are
-    filled linearly.
+    decides. End gaps are held (as the cubic spline does).
 
     Near the clip's ends a high-degree interpolant has too little data on one side and
     swings: a gap with fewer than (degree + 1)/2 observed samples before or after it in its
-    row takes the cubic spline instead. Measured on 85_12 at mr = 0.2 (seed 0): one
+    row takes the cubic spline instead (so does a row with too few samples for the degree;
+    under 4 samples, linear interpolation). Measured on 85_12 at mr = 0.2 (seed 0): one
     2-frame gap at frames 1–2 held 98 % of the quintic's squared error over all 2-frame
     gaps (squared error 1.0e−2 against the cubic's 1.3e−4); stand-ins almost never fall
     there, so the blend had trusted the quintic for that length class.
     """
-    from .interp import _interpolate, spline
+    from .interp import _interpolate, cubic_interpolant
+
+    support = (degree + 1) // 2
 
     def make(t_obs: np.ndarray, y_obs: np.ndarray):
-        return make_interp_spline(t_obs, y_obs, k=degree) if t_obs.size > degree else None
+        if t_obs.size <= degree:             # every gap lacks support: the cubic's row
+            return cubic_interpolant(t_obs, y_obs)
+        high = make_interp_spline(t_obs, y_obs, k=degree)
+        # Frames with fewer than ``support`` samples before them (t < t_obs[support − 1])
+        # or after them (t > t_obs[−support]) take the cubic.
+        first, last = t_obs[support - 1], t_obs[-support]
 
-    out = _interpolate(matrix, observed, make)
-    support = (degree + 1) // 2
-    seen = np.asarray(observed, dtype=bool)
-    counts = np.cumsum(seen, axis=1)
-    before = counts - seen                   # observed samples strictly before each frame
-    after = counts[:, -1:] - counts          # and strictly after it
-    weak = ~seen & (before >= 1) & (after >= 1) & ((before < support) | (after < support))
-    if weak.any():
-        out[weak] = spline(matrix, observed)[weak]
-    return out
+        def evaluate(t: np.ndarray) -> np.ndarray:
+            values = high(t)
+            edge = (t < first) | (t > last)
+            if edge.any():
+                values[edge] = cubic_interpolant(t_obs, y_obs)(t[edge])
+            return values
+        return evaluate
+
+    return _interpolate(matrix, observed, make)
 
 
 def _xyz(matrix: np.ndarray) -> np.ndarray:

@@ -24,6 +24,8 @@ Observed entries are returned unchanged.
 """
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 from scipy.interpolate import CubicSpline, PchipInterpolator
 
@@ -79,12 +81,15 @@ def spline(matrix: np.ndarray, observed: np.ndarray, *, bc_type: str = "not-a-kn
     if bc_type not in ("not-a-knot", "natural", "clamped"):
         raise ValueError(f"bc_type must be 'not-a-knot', 'natural' or 'clamped', got {bc_type!r}")
 
-    def make(t_obs, y_obs):
-        if t_obs.size < 4:
-            return None
-        return CubicSpline(t_obs, y_obs, bc_type=bc_type, extrapolate=False)
+    return _interpolate(matrix, observed, partial(cubic_interpolant, bc_type=bc_type))
 
-    return _interpolate(matrix, observed, make)
+
+def cubic_interpolant(t_obs: np.ndarray, y_obs: np.ndarray, *, bc_type: str = "not-a-knot"
+                      ) -> CubicSpline | None:
+    """The cubic spline of :func:`spline` through one row's samples; None under 4 samples."""
+    if t_obs.size < 4:
+        return None
+    return CubicSpline(t_obs, y_obs, bc_type=bc_type, extrapolate=False)
 
 
 def pchip(matrix: np.ndarray, observed: np.ndarray, *, rate: float | None = None,
