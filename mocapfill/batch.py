@@ -467,8 +467,8 @@ def _exit_on_terminate(signum, frame) -> None:
 
 
 @contextmanager
-def _environment(values: dict[str, str]):
-    """Set environment variables for the duration of a block (for child processes)."""
+def temporary_environment(values: dict[str, str]):
+    """Set environment variables for the duration of a block (child processes, solvers)."""
     saved = {name: os.environ.get(name) for name in values}
     os.environ.update(values)
     try:
@@ -516,7 +516,7 @@ def _run_pool(jobs: Sequence[FileJob], workers: int,
                                    mp_context=multiprocessing.get_context("spawn"),
                                    initializer=_single_threaded_worker)
     try:
-        with _environment(SINGLE_THREADED):
+        with temporary_environment(SINGLE_THREADED):
             futures = {executor.submit(repair_file, job): job for job in jobs}
         for future in as_completed(futures):
             try:

@@ -122,6 +122,7 @@ def _solver_stats(path: Path, method: str) -> tuple[int | None, float | None]:
     one core's, and two solves side by side would share the memory bandwidth and caches.
     The wall times come from the command as users run it, threads included.
     """
+    from .batch import temporary_environment
     from .solvers import trnn as trnn_module
     from .solvers._threads import VARIABLE
 
@@ -135,18 +136,13 @@ def _solver_stats(path: Path, method: str) -> tuple[int | None, float | None]:
         return result
 
     trnn_module.trnn = recording
-    saved = os.environ.get(VARIABLE)
-    os.environ[VARIABLE] = "1"
     try:
         from .pipeline import RepairOptions, repair
 
-        repair(formats.read(path), RepairOptions(method=method))
+        with temporary_environment({VARIABLE: "1"}):
+            repair(formats.read(path), RepairOptions(method=method))
     finally:
         trnn_module.trnn = original
-        if saved is None:
-            del os.environ[VARIABLE]
-        else:
-            os.environ[VARIABLE] = saved
     iterations = sum(c[0] for c in calls)
     if not iterations:
         return None, None
