@@ -3,20 +3,28 @@
 Prints one line per (clip, protocol) with error / seconds for each variant. Needs
 ../shared/data/cmu. Example (the fourth-session table of docs/results.md):
 
-    OPENBLAS_NUM_THREADS=1 python scripts/cmu_sweep.py ml=20,ml=40,ml=60,mr=0.2,mr=0.4,mr=0.6 \
+    python scripts/cmu_sweep.py ml=20,ml=40,ml=60,mr=0.2,mr=0.4,mr=0.6 \
         'trnn:{}'
 """
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 
-import numpy as np
+# One BLAS thread, as `mocapfill repair` runs (mocapfill/cli.py): threaded BLAS rounds
+# differently, and the default's validated choices can flip on that (WalkL_0001: 1.694
+# mm with two BLAS threads, 1.726 with one), so a figure measured otherwise is not the
+# command's.
+for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
 
-from mocapfill.bench import CMU_CLIPS, SEEDS, _cmu_case
-from mocapfill.metrics import score
-from mocapfill.pipeline import RepairOptions, repair
+import numpy as np  # noqa: E402 (after the BLAS setting)
+
+from mocapfill.bench import CMU_CLIPS, SEEDS, _cmu_case  # noqa: E402 (after the BLAS setting)
+from mocapfill.metrics import score  # noqa: E402 (after the BLAS setting)
+from mocapfill.pipeline import RepairOptions, repair  # noqa: E402 (after the BLAS setting)
 
 
 def main(protocols: str, specs: list[str]) -> None:
