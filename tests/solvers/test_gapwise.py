@@ -1,9 +1,19 @@
-"""Validation stand-ins of the default blend (mocapfill.solvers.gapwise.pseudo_gaps)."""
+"""The default blend's validation: stand-ins (pseudo_gaps) and the weights they give."""
 from __future__ import annotations
 
 import numpy as np
 
-from mocapfill.solvers.gapwise import GapSet, interior_gaps, pseudo_gaps, row_groups
+from mocapfill.solvers.gapwise import (
+    GapSet,
+    _bagged,
+    _convex_fit,
+    _cross_validated,
+    _stack,
+    evidence,
+    interior_gaps,
+    pseudo_gaps,
+    row_groups,
+)
 
 
 def _mask(n_markers: int, n: int, gaps: list[tuple[int, int, int]]) -> np.ndarray:
@@ -73,3 +83,41 @@ def test_odd_spline_fill_takes_the_cubic_where_one_side_lacks_support():
         np.testing.assert_array_equal(out[0, a:b], cubic[0, a:b])
     np.testing.assert_allclose(out[0, 100:103], quintic[100:103], rtol=0, atol=1e-12)
     np.testing.assert_array_equal(out[observed], row[observed[0]])
+
+
+def test_convex_fit_from_gram_matrices_minimises_the_stacked_error():
+    rng = np.random.default_rng(3)
+    blocks = [rng.normal(size=(12, 3)) * [1.0, 1.3, 2.0] for _ in range(20)]
+    gram, size = sum(b.T @ b for b in blocks), sum(b.shape[0] for b in blocks)
+    w = _convex_fit(gram, size)
+    assert w.min() >= 0 and np.isclose(w.sum(), 1.0)
+    E = np.vstack(blocks)
+    best = min(((a, b, 1 - a - b) for a in np.linspace(0, 1, 201)
+                for b in np.linspace(0, 1, 201) if a + b <= 1),
+               key=lambda v: float(((E @ np.array(v)) ** 2).sum()))
+    assert ((E @ w) ** 2).sum() <= ((E @ np.array(best)) ** 2).sum() + 1e-9
+    # Opposite errors cancel: the blend is the midpoint.
+    e = rng.normal(size=(30, 1))
+    assert np.allclose(_convex_fit(*evidence(np.hstack([e, -e]))), [0.5, 0.5], atol=1e-6)
+
+
+def test_bagged_weights_keep_a_clear_winner_and_hedge_a_close_call():
+    rng = np.random.default_rng(0)
+    z = rng.normal(size=(40, 10))
+    # Clear: candidate 1 errs ten times less than the others on every stand-in.
+    clear = [evidence(np.stack([z[i], 0.1 * z[i], 1.5 * z[i]], axis=1)) for i in range(40)]
+    assert np.allclose(_bagged(clear, np.random.default_rng(1)), [0, 1, 0])
+    # Close: both candidates share the bulk of their errors, and each is the better one on
+    # half of the stand-ins by a few per cent; one hard choice stakes everything on
+    # whichever the stand-ins' sample favours, the bagged weights share between the two.
+    close = []
+    for i in range(12):
+        shrink = 0.97 if i % 2 else 1.03
+        close.append(evidence(np.stack([z[i], shrink * z[i] + 0.01 * z[i + 20]], axis=1)))
+    hard = _cross_validated(_stack(close))
+    bagged = _bagged(close, np.random.default_rng(1))
+    assert np.isclose(bagged.sum(), 1.0)
+    assert 0.15 < bagged[0] < 0.85
+    assert hard.max() > bagged.max()
+    # Deterministic for a given generator.
+    assert np.array_equal(bagged, _bagged(close, np.random.default_rng(1)))
