@@ -315,7 +315,9 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     The weights come from :func:`mocapfill.solvers.gapwise.blend`: observed stretches of
     the same markers with the same lengths are hidden (≤ 10 % of the samples), every
     candidate is scored there, and convex weights per gap-length class are kept when
-    two-fold cross-validation shows they beat the best single candidate. Things measured
+    two-fold cross-validation shows they beat the best single candidate, that choice
+    averaged over 64 bootstrap resamples of the stand-ins (on dense loss, stand-ins may
+    take in real missing frames and are scored on the frames they hide). Things measured
     and rejected: validating many long stand-ins at once (the validation clip becomes
     much harder than the real one and reverses rankings), placing stand-ins only in
     clean stretches (flatters high-degree splines), per-gap weights from 2 stand-ins
