@@ -8,18 +8,16 @@ Heavy imports (numpy, scipy) happen inside the commands so ``mocapfill --help`` 
 from __future__ import annotations
 
 import json
-import os
 import sys
 from pathlib import Path
 
 import click
 
+from ._blas import one_thread_by_default
+
 # One BLAS thread unless the user chose otherwise (set OPENBLAS_NUM_THREADS etc. to
-# override): the solvers make many small products, where threads cost more than they
-# give, and on a busy or batch-loaded machine threaded BLAS measured 5-18x slower.
-# This runs before numpy is first imported by any command.
-for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_variable, "1")
+# override). This runs before numpy is first imported by any command.
+one_thread_by_default()
 
 EXIT_CHECK_FAILED = 1
 EXIT_USAGE = 2

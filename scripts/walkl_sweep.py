@@ -9,15 +9,12 @@ column per variant. Needs ../shared/data/walkl. Example (the η₀ sweep of docs
 from __future__ import annotations
 
 import json
-import os
 import sys
 
-# One BLAS thread, as `mocapfill repair` runs (mocapfill/cli.py): threaded BLAS rounds
-# differently, and the default's validated choices can flip on that (WalkL_0001: 1.694
-# mm with two BLAS threads, 1.726 with one), so a figure measured otherwise is not the
-# command's.
-for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_variable, "1")
+from mocapfill._blas import one_thread_by_default
+
+# One BLAS thread, as `mocapfill repair` runs, so that the figures are the command's.
+one_thread_by_default()
 
 import numpy as np  # noqa: E402 (after the BLAS setting)
 
