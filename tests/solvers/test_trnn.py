@@ -219,3 +219,22 @@ def test_spd_inverse_matches_lu_and_falls_back_on_an_indefinite_matrix():
         np.testing.assert_allclose(inverse @ A.astype(dtype), np.eye(9), atol=tol)
     indefinite = np.diag([1.0, -2.0, 3.0])
     np.testing.assert_allclose(spd_inverse(indefinite), np.linalg.inv(indefinite))
+
+
+def test_orthonormal_maximiser_is_the_svd_solution_and_survives_rank_deficiency():
+    from mocapfill.solvers.trnn import _orthonormal_maximiser
+
+    rng = np.random.default_rng(8)
+    for rows in (40, 2000):
+        G = rng.normal(size=(rows, 5)) * np.array([100.0, 10.0, 1.0, 0.1, 0.05])
+        P, _, Qt = np.linalg.svd(G, full_matrices=False)
+        for dtype, tol in ((np.float64, 1e-9), (np.float32, 1e-4)):
+            U = _orthonormal_maximiser(G.astype(dtype))
+            assert U.dtype == dtype and U.shape == (5, rows)
+            np.testing.assert_allclose(U, Qt.T @ P.T, atol=tol)
+    # Rank 2 of 3: the Gram route cannot resolve the null direction; the SVD's answer
+    # is still orthonormal and attains the maximum tr(U G) = Σσ.
+    G = rng.normal(size=(50, 2)) @ rng.normal(size=(2, 3))
+    U = _orthonormal_maximiser(G)
+    np.testing.assert_allclose(U @ U.T, np.eye(3), atol=1e-10)
+    assert np.trace(U @ G) == pytest.approx(np.linalg.svd(G, compute_uv=False).sum())
