@@ -127,26 +127,42 @@ def fit_normal(matrix: np.ndarray, observed: np.ndarray, *, start: np.ndarray,
         At most ``max_iter`` EM iterations; stop earlier when no filled entry moves by
         more than ``tol`` (unit-RMS scale).
     """
-    missing = ~observed
     F = np.where(observed, matrix, start).astype(np.float64)
     m, n = F.shape
+    # Only the incomplete frames change: the complete ones enter every M-step through
+    # their sum and scatter, accumulated once (about a shift c, the start's mean, so the
+    # raw moments lose no precision). On 85_12 with ten 40-frame gaps (4500 frames, 400
+    # incomplete) an iteration costs a tenth of the whole-clip update.
+    incomplete = np.flatnonzero(~observed.all(axis=0))
+    shift = F.mean(axis=1, keepdims=True)
+    fixed = np.delete(F, incomplete, axis=1) - shift
+    fixed_sum = fixed.sum(axis=1, keepdims=True)
+    fixed_scatter = fixed @ fixed.T
+    del fixed
+    data = matrix[:, incomplete]
+    seen = observed[:, incomplete]
+    missing = ~seen
     sets = _missing_sets(missing)
+    FI = F[:, incomplete]
     scatter = np.zeros((m, m))
     iterations = 0
     while True:
-        mean = F.mean(axis=1, keepdims=True)
-        Z = F - mean
-        cov = (Z @ Z.T + scatter) / n
+        ZI = FI - shift
+        offset = (fixed_sum + ZI.sum(axis=1, keepdims=True)) / n       # μ − c
+        mean = shift + offset
+        cov = (fixed_scatter + ZI @ ZI.T + scatter) / n - offset @ offset.T
         cov[np.diag_indices(m)] += ridge * max(float(np.trace(cov)) / m, 1e-12)
         precision = spd_inverse(cov)
         if iterations == max_iter or not sets:
+            F[:, incomplete] = FI
             return NormalFit(F, mean, precision, iterations)
-        before = Z[missing]
-        scatter = conditional_step(Z, precision, sets)
-        F = Z + mean
-        np.copyto(F, matrix, where=observed)      # exact data, not x − μ + μ
+        ZI -= offset                                # now x − μ
+        before = ZI[missing]
+        scatter = conditional_step(ZI, precision, sets)
+        FI = ZI + mean
+        np.copyto(FI, data, where=seen)             # exact data, not x − μ + μ
         iterations += 1
-        if np.abs(Z[missing] - before).max() <= tol:
+        if np.abs(ZI[missing] - before).max() <= tol:
             max_iter = iterations           # one more M-step, then stop
 
 
