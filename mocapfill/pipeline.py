@@ -168,39 +168,50 @@ def window_bounds(n_frames: int, window: int, overlap: int) -> list[tuple[int, i
 
 def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trnn", *,
                     window_frames: int = WINDOW_FRAMES, window_overlap: int = WINDOW_OVERLAP,
-                    **solver_options) -> np.ndarray:
+                    overwrite: bool = False, **solver_options) -> np.ndarray:
     """Complete a (3·markers × frames) matrix in the unit-invariant scale.
 
     Clips longer than ``window_frames`` are solved in windows overlapping by
     ``window_overlap`` frames, blended with linear cross-fades, so memory stays bounded and
     time linear in the clip length (0 disables windowing). Observed entries of the result
-    equal ``matrix`` exactly.
+    equal ``matrix`` exactly. With ``overwrite`` the fills are written into ``matrix``
+    itself (its missing entries), which is returned: no second clip-sized array.
     """
     n = matrix.shape[1]
+    out = matrix if overwrite else np.array(matrix, dtype=np.float64)
     if not window_frames or n <= window_frames:
-        return np.where(observed, matrix, _solve_scaled(matrix, observed, method,
-                                                        solver_options))
+        np.copyto(out, _solve_scaled(matrix, observed, method, solver_options),
+                  where=~observed)
+        return out
     if not 0 < window_overlap < window_frames // 2:
         raise ParameterError("window overlap must be positive and under half the window")
-    total = np.zeros(matrix.shape)
-    weight = np.zeros(n)
     ramp = np.linspace(0.0, 1.0, window_overlap + 2)[1:-1]
-    for start, stop in window_bounds(n, window_frames, window_overlap):
+    bounds = window_bounds(n, window_frames, window_overlap)
+    # Each window's weighted fill plus what earlier windows left pending on its first
+    # frames; the frames before the next window's start are then final and written out
+    # (a window only reads frames no earlier window has written). The sums are those of
+    # accumulating every window into one clip-sized array, in the same order.
+    pending, pending_weight = np.zeros((matrix.shape[0], 0)), np.zeros(0)
+    for index, (start, stop) in enumerate(bounds):
         w = np.ones(stop - start)
         if start > 0:
             w[:window_overlap] = ramp
         if stop < n:
             w[-window_overlap:] = ramp[::-1]
-        part = _solve_scaled(matrix[:, start:stop], observed[:, start:stop], method,
-                             solver_options)
-        total[:, start:stop] += w * part
-        weight[start:stop] += w
-        del part
+        total = w * _solve_scaled(matrix[:, start:stop], observed[:, start:stop], method,
+                                  solver_options)
+        weight = w.copy()
+        carried = pending.shape[1]
+        total[:, :carried] += pending
+        weight[:carried] += pending_weight
+        final = (bounds[index + 1][0] if index + 1 < len(bounds) else stop) - start
+        total[:, :final] /= weight[:final]
+        np.copyto(out[:, start:start + final], total[:, :final],
+                  where=~observed[:, start:start + final])
+        pending, pending_weight = total[:, final:].copy(), weight[final:].copy()
+        del total
         release_memory()            # the window's freed arrays, back to the system
-    # In place: a 30-minute clip's matrix is 200 MB, and every copy counts.
-    total /= weight
-    np.copyto(total, matrix, where=observed)
-    return total
+    return out
 
 
 def _named(motion: Motion) -> str:
@@ -212,7 +223,7 @@ def _complete_clip(motion: Motion, matrix: np.ndarray, observed: np.ndarray,
     """:func:`complete_matrix` with the options; a solver failure names the clip's file."""
     try:
         return complete_matrix(matrix, observed, options.method, rate=motion.rate,
-                               **options.solver_options)
+                               overwrite=True, **options.solver_options)
     except SolverError as exc:
         raise SolverError(f"{_named(motion)}{exc}") from None
 

@@ -167,6 +167,40 @@ def test_windowed_solve_is_close_to_the_whole_clip_solve():
     np.testing.assert_array_equal(windowed[observed], matrix[observed])
 
 
+def test_windows_are_streamed_into_the_clip_as_if_accumulated_and_divided():
+    # 2650 frames in windows of 1000 with 200 of overlap: the last window starts at 1650,
+    # so three windows cover frames 1650–1800 and the weights there do not sum to 1.
+    from mocapfill.pipeline import _solve_scaled, complete_matrix, window_bounds
+
+    truth = smooth_clip(2650, 6)
+    gapped = truth
+    for marker, start in [(0, 100), (1, 790), (2, 1620), (3, 1700), (4, 2500)]:
+        gapped = with_gap(gapped, marker, start, start + 80)
+    matrix, observed = gapped.matrix()
+    bounds = window_bounds(2650, 1000, 200)
+    assert [a for a, _ in bounds] == [0, 800, 1600, 1650]
+    total, weight = np.zeros(matrix.shape), np.zeros(2650)
+    ramp = np.linspace(0.0, 1.0, 202)[1:-1]
+    for start, stop in bounds:
+        w = np.ones(stop - start)
+        if start > 0:
+            w[:200] = ramp
+        if stop < 2650:
+            w[-200:] = ramp[::-1]
+        total[:, start:stop] += w * _solve_scaled(matrix[:, start:stop],
+                                                  observed[:, start:stop], "spline", {})
+        weight[start:stop] += w
+    expected = np.where(observed, matrix, total / weight)
+    kept = matrix.copy()
+    got = complete_matrix(matrix, observed, "spline", window_frames=1000, window_overlap=200)
+    np.testing.assert_array_equal(got, expected)
+    np.testing.assert_array_equal(matrix, kept)          # the input is left alone
+    inplace = complete_matrix(matrix, observed, "spline", window_frames=1000,
+                              window_overlap=200, overwrite=True)
+    assert inplace is matrix
+    np.testing.assert_array_equal(inplace, expected)
+
+
 def test_clip_with_every_sample_missing_is_refused():
     clip = smooth_clip(50, 3)
     empty = clip.with_positions(clip.positions, np.zeros_like(clip.observed))
