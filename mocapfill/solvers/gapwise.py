@@ -92,20 +92,38 @@ def ramp(values_before: np.ndarray, values_after: np.ndarray, length: int) -> np
     return np.outer(values_before, 1 - s) + np.outer(values_after, s)
 
 
+def gap_frames(starts: np.ndarray, stops: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For runs [starts[i], stops[i]): the run of every frame and its position in the run,
+    run after run (vectorised form of a loop over ``range(a, b)`` per run)."""
+    lengths = stops - starts
+    run = np.repeat(np.arange(lengths.size), lengths)
+    position = np.arange(lengths.sum()) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+    return run, position
+
+
 def join_ends(fill: np.ndarray, matrix: np.ndarray, observed: np.ndarray,
               gapset: GapSet) -> np.ndarray:
     """Add to every interior gap the ramp that makes ``fill`` meet the observed samples.
 
     ``fill`` is a full-matrix estimate whose values on the observed samples next to a gap
     may differ from the data (a low-rank fit); the corrected fill equals the data at the
-    samples just outside the gap, with the offset interpolated linearly in between.
+    samples just outside the gap, with the offset interpolated linearly in between
+    (:func:`ramp`, here for all gaps at once: random loss gives tens of thousands).
     """
     out = np.where(observed, matrix, fill)
-    for g, a, b in gapset.gaps:
-        rows = gapset.rows(g)
-        before = matrix[rows, a - 1] - fill[rows, a - 1]
-        after = matrix[rows, b] - fill[rows, b]
-        out[rows, a:b] = fill[rows, a:b] + ramp(before, after, b - a)
+    if not gapset.gaps:
+        return out
+    g, a, b = np.array(gapset.gaps).T
+    rows = gapset.groups[g]                                          # (gaps, k)
+    before = matrix[rows, (a - 1)[:, None]] - fill[rows, (a - 1)[:, None]]
+    after = matrix[rows, b[:, None]] - fill[rows, b[:, None]]
+    run, position = gap_frames(a, b)
+    frames = a[run] + position
+    s = (position + 1) / (b - a + 1)[run]
+    for column in range(rows.shape[1]):
+        r = rows[run, column]
+        out[r, frames] = fill[r, frames] + (before[run, column] * (1 - s)
+                                            + after[run, column] * s)
     return out
 
 
@@ -472,13 +490,25 @@ class BlendReport:
 
 
 def _stand_in_errors(fill_fn: Candidate, blinded: np.ndarray, train: np.ndarray,
-                     matrix: np.ndarray, spans: list[tuple[np.ndarray, np.ndarray]]
-                     ) -> list[np.ndarray]:
-    """A candidate's errors (fill − data) on the hidden (rows, frames) of each stand-in,
-    from its validation run."""
+                     matrix: np.ndarray, rows: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """A candidate's errors (fill − data) on the hidden samples of the stand-ins, from its
+    validation run: (samples, k) for the rows ``rows`` (samples, k) at ``frames``."""
     fill = fill_fn(blinded, train)
-    return [(fill[np.ix_(rows, frames)] - matrix[np.ix_(rows, frames)]).ravel()
-            for rows, frames in spans]
+    return fill[rows, frames[:, None]] - matrix[rows, frames[:, None]]
+
+
+def _hidden_samples(hidden: list, groups: np.ndarray, observed: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows (samples, k) and frames (samples,) of what the stand-ins hid, and the bounds
+    of each stand-in's samples: the frames it hid (it may have absorbed real missing
+    frames), stand-in after stand-in, in time order."""
+    g, a, b = np.array([span for span, _ in hidden]).T
+    run, position = gap_frames(a, b)
+    frames = a[run] + position
+    rows = groups[g][run]
+    kept = observed[rows[:, 0], frames]
+    run = run[kept]
+    return rows[kept], frames[kept], np.searchsorted(run, np.arange(len(hidden) + 1))
 
 
 def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candidate], *,
@@ -541,18 +571,19 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     jobs = [partial(fn, matrix, observed) for fn in candidates.values()]
     if hidden:
         blinded = np.where(train, matrix, 0.0)
-        # Scored: the frames a stand-in hid (it may have absorbed real missing frames).
-        spans = [(groups[g], a + np.flatnonzero(observed[groups[g][0], a:b]))
-                 for (g, a, b), _ in hidden]
-        trials = [partial(_stand_in_errors, fn, blinded, train, matrix, spans)
-                  for fn in candidates.values()]
+        sample_rows, sample_frames, bounds = _hidden_samples(hidden, groups, observed)
+        trials = [partial(_stand_in_errors, fn, blinded, train, matrix, sample_rows,
+                          sample_frames) for fn in candidates.values()]
         jobs = [job for pair in zip(trials, jobs) for job in pair]
     done = run_all(jobs)
     fills = done[1::2] if hidden else done
     if hidden:
         trial_errors = done[0::2]
         for index, ((_, a, b), source) in enumerate(hidden):
-            block = evidence(np.stack([errors_k[index] for errors_k in trial_errors], axis=1))
+            lo, hi = bounds[index], bounds[index + 1]
+            # Samples row by row, as the (rows × frames) block of the stand-in.
+            block = evidence(np.stack([errors_k[lo:hi].T.ravel()
+                                       for errors_k in trial_errors], axis=1))
             errors.setdefault(length_class(b - a), []).append(block)
             own.setdefault(source, []).append(block)
     weights = blend_weights(errors, rng)
@@ -562,7 +593,10 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     if prior_w.sum() > 0:
         prior_w = prior_w / prior_w.sum()
     out = np.where(observed, matrix, fills[names.index(default)])
-    for index, (g, a, b) in enumerate(gapset.gaps):
+    # Gaps sharing one weight vector are blended together (random loss gives tens of
+    # thousands of gaps, most of them sharing their length class's weights).
+    shared: dict[bytes, tuple[np.ndarray, list[int]]] = {}
+    for index, (_, a, b) in enumerate(gapset.gaps):
         # A gap with enough stand-ins of its own (long gaps, which are few) is judged on
         # that local evidence; the others share the weights of their length class.
         if len(own.get(index, [])) >= MIN_OWN_STANDINS:
@@ -571,6 +605,10 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
             w = _weights_for(length_class(b - a), weights, fallback)
         if prior and b - a >= MIN_MODEL_GAP:
             w = (1 - prior_share) * w + prior_share * prior_w
-        rows = groups[g]
-        out[rows, a:b] = sum(wk * f[rows, a:b] for wk, f in zip(w, fills) if wk > 0)
+        shared.setdefault(w.tobytes(), (w, []))[1].append(index)
+    for w, indices in shared.values():
+        g, a, b = np.array([gapset.gaps[i] for i in indices]).T
+        run, position = gap_frames(a, b)
+        rows, frames = groups[g][run], (a[run] + position)[:, None]
+        out[rows, frames] = sum(wk * f[rows, frames] for wk, f in zip(w, fills) if wk > 0)
     return out, BlendReport(names, weights, len(hidden))

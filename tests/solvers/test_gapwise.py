@@ -11,7 +11,9 @@ from mocapfill.solvers.gapwise import (
     _stack,
     evidence,
     interior_gaps,
+    join_ends,
     pseudo_gaps,
+    ramp,
     row_groups,
 )
 
@@ -143,3 +145,23 @@ def test_bagged_weights_keep_a_clear_winner_and_hedge_a_close_call():
     assert hard.max() > bagged.max()
     # Deterministic for a given generator.
     assert np.array_equal(bagged, _bagged(close, np.random.default_rng(1)))
+
+
+def test_join_ends_adds_each_gaps_ramp_for_marker_and_single_row_groups():
+    # All gaps at once must be the per-gap ramp of the offsets at the samples just outside.
+    rng = np.random.default_rng(3)
+    for split in (False, True):
+        observed = rng.random((12, 200)) > 0.3
+        if not split:
+            observed = np.repeat(observed[0::3], 3, axis=0)
+        groups = row_groups(observed)
+        assert groups.shape[1] == (1 if split else 3)
+        gapset = GapSet(groups, interior_gaps(observed, groups))
+        matrix, fill = rng.normal(size=(2, 12, 200))
+        expected = np.where(observed, matrix, fill)
+        for g, a, b in gapset.gaps:
+            rows = groups[g]
+            expected[rows, a:b] = fill[rows, a:b] + ramp(
+                matrix[rows, a - 1] - fill[rows, a - 1], matrix[rows, b] - fill[rows, b], b - a)
+        assert len(gapset.gaps) > 50
+        np.testing.assert_array_equal(join_ends(fill, matrix, observed, gapset), expected)
