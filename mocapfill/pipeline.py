@@ -254,17 +254,34 @@ def _jump_threshold(values: np.ndarray, observed: np.ndarray, options: RepairOpt
     return max(JUMP_FLOOR_MM / mm_per_unit, JUMP_FACTOR * worst) if seen.size else np.inf
 
 
-def _boundary_jump(values: np.ndarray, observed: np.ndarray, gap: Gap) -> float:
-    """Worst deviation of the fill from the constant-velocity prediction at the gap ends."""
-    worst = 0.0
-    for edge, inside, step in ((gap.start - 1, gap.start, -1), (gap.stop, gap.stop - 1, 1)):
-        if not 0 <= edge < len(values) or not observed[edge]:
-            continue
-        before = edge + step  # second observed sample on the same side, if any
-        velocity = (values[edge] - values[before]) if (0 <= before < len(values)
-                                                       and observed[before]) else 0.0
-        predicted = values[edge] + velocity
-        worst = max(worst, float(np.linalg.norm(values[inside] - predicted)))
+def _boundary_jumps(positions: np.ndarray, observed: np.ndarray, gaps: list[Gap]
+                    ) -> np.ndarray:
+    """Worst deviation of each gap's fill from the constant-velocity prediction at its
+    ends (0 where neither end has an observed sample), for all gaps at once.
+
+    ``positions`` (frames, markers, 3) holds the fills; at each end the prediction is the
+    observed sample there plus the step from the observed sample before it (no step when
+    that one is missing or off the clip).
+    """
+    worst = np.zeros(len(gaps))
+    if not gaps:
+        return worst
+    n = positions.shape[0]
+    marker = np.array([g.marker for g in gaps])
+    start = np.array([g.start for g in gaps])
+    stop = np.array([g.stop for g in gaps])
+    for edge, inside, step in ((start - 1, start, -1), (stop, stop - 1, 1)):
+        valid = (edge >= 0) & (edge < n)
+        valid[valid] = observed[edge[valid], marker[valid]]
+        e, i, k = edge[valid], inside[valid], marker[valid]
+        before = e + step
+        has_before = (before >= 0) & (before < n)
+        has_before[has_before] = observed[before[has_before], k[has_before]]
+        before = np.where(has_before, before, e)
+        velocity = np.where(has_before[:, None],
+                            positions[e, k] - positions[before, k], 0.0)
+        deviation = np.linalg.norm(positions[i, k] - (positions[e, k] + velocity), axis=1)
+        worst[valid] = np.maximum(worst[valid], deviation)
     return worst
 
 
@@ -314,18 +331,20 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     accepted = np.zeros(motion.observed.shape, dtype=bool)
     new_observed = motion.observed.copy()
     thresholds: dict[int, float] = {}
-    for index, outcome in enumerate(outcomes):
-        if outcome.status != FILLED:
-            continue
-        gap = outcome.gap
-        marker_observed = motion.observed[:, gap.marker]
-        values = filled[:, gap.marker, :]
+    to_check = [index for index, o in enumerate(outcomes) if o.status == FILLED]
+    for index in to_check:
+        gap = outcomes[index].gap
         if gap.at_start or gap.at_end:
-            _fill_ends(values, marker_observed, gap, options.ends)
+            _fill_ends(filled[:, gap.marker, :], motion.observed[:, gap.marker], gap,
+                       options.ends)
+    jumps = _boundary_jumps(filled, motion.observed, [outcomes[i].gap for i in to_check])
+    for index, jump in zip(to_check, jumps):
+        gap = outcomes[index].gap
         if gap.marker not in thresholds:
             thresholds[gap.marker] = _jump_threshold(motion.positions[:, gap.marker],
-                                                     marker_observed, options, unit_mm)
-        if _boundary_jump(values, marker_observed, gap) > thresholds[gap.marker]:
+                                                     motion.observed[:, gap.marker],
+                                                     options, unit_mm)
+        if jump > thresholds[gap.marker]:
             outcomes[index] = GapOutcome(gap, REJECTED_JUMP, options.method)
             continue
         accepted[gap.start:gap.stop, gap.marker] = True

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from mocapfill.errors import NothingToRepair, ParameterError
+from mocapfill.gaps import missing_runs
 from mocapfill.motion import Motion
 from mocapfill.pipeline import RepairOptions, repair
 
@@ -130,6 +131,36 @@ def test_fill_with_a_boundary_jump_is_rejected_and_reported(monkeypatch):
     assert result.motion.observed.sum() == gapped.observed.sum()
     disabled = repair(gapped, RepairOptions(method="teleport", max_jump_mm=0))
     assert disabled.motion.observed.all()
+
+
+def test_boundary_jumps_of_all_gaps_match_the_one_gap_definition():
+    from mocapfill.gaps import Gap
+    from mocapfill.pipeline import _boundary_jumps
+
+    rng = np.random.default_rng(5)
+    n, markers = 60, 4
+    positions = rng.normal(size=(n, markers, 3))
+    observed = rng.random((n, markers)) > 0.35
+    observed[:, 0] = True
+    observed[0:3, 0] = observed[-2:, 0] = False          # end gaps
+    gaps = [Gap(k, f"m{k}", a, b, n) for k in range(markers)
+            for a, b in missing_runs(observed[:, k])]
+
+    def one(values, seen, gap):         # the rule as stated, one gap at a time
+        worst = 0.0
+        for edge, inside, step in ((gap.start - 1, gap.start, -1), (gap.stop, gap.stop - 1, 1)):
+            if not 0 <= edge < n or not seen[edge]:
+                continue
+            before = edge + step
+            ok = 0 <= before < n and seen[before]
+            predicted = values[edge] + (values[edge] - values[before] if ok else 0.0)
+            worst = max(worst, float(np.linalg.norm(values[inside] - predicted)))
+        return worst
+
+    expected = [one(positions[:, g.marker], observed[:, g.marker], g) for g in gaps]
+    assert len(gaps) > 20 and any(g.at_start for g in gaps) and any(g.at_end for g in gaps)
+    np.testing.assert_allclose(_boundary_jumps(positions, observed, gaps), expected,
+                               rtol=1e-14, atol=0)
 
 
 def test_smooth_fills_pass_the_default_jump_check():

@@ -82,8 +82,8 @@ def interior_gaps(observed: np.ndarray, groups: np.ndarray) -> list[tuple[int, i
 
 
 def length_class(length: int) -> int:
-    """0 for 1 frame, 1 for 2, 2 for 3–4, 3 for 5–8, …"""
-    return int(np.ceil(np.log2(max(length, 1))))
+    """0 for 1 frame, 1 for 2, 2 for 3–4, 3 for 5–8, … (⌈log₂ length⌉, in integers)."""
+    return (max(int(length), 1) - 1).bit_length()
 
 
 def ramp(values_before: np.ndarray, values_after: np.ndarray, length: int) -> np.ndarray:
