@@ -332,10 +332,12 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     candidate is scored there, and convex weights per gap-length class are kept when
     two-fold cross-validation shows they beat the best single candidate, that choice
     averaged over 64 bootstrap resamples of the stand-ins (on dense loss, stand-ins may
-    take in real missing frames and are scored on the frames they hide). Things measured
-    and rejected: validating many long stand-ins at once (the validation clip becomes
-    much harder than the real one and reverses rankings), placing stand-ins only in
-    clean stretches (flatters high-degree splines), per-gap weights from 2 stand-ins
+    take in real missing frames and are scored on the frames they hide); on each gap of 5
+    frames or more, a candidate whose fill is an outlier among the candidates' fills
+    there loses its weight (Hampel's rule on the distances from their median fill).
+    Things measured and rejected: validating many long stand-ins at once (the validation
+    clip becomes much harder than the real one and reverses rankings), placing stand-ins
+    only in clean stretches (flatters high-degree splines), per-gap weights from 2 stand-ins
     (too noisy), a pose k-NN fill (15–200 mm), a leave-marker-out low-rank prediction
     plus spline of its residual (13–75 mm on random gaps).
 

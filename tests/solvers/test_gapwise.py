@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from mocapfill.solvers.gapwise import (
     GapSet,
@@ -9,6 +10,7 @@ from mocapfill.solvers.gapwise import (
     _convex_fit,
     _cross_validated,
     _stack,
+    _without_outliers,
     evidence,
     interior_gaps,
     join_ends,
@@ -165,3 +167,20 @@ def test_join_ends_adds_each_gaps_ramp_for_marker_and_single_row_groups():
                 matrix[rows, a - 1] - fill[rows, a - 1], matrix[rows, b] - fill[rows, b], b - a)
         assert len(gapset.gaps) > 50
         np.testing.assert_array_equal(join_ends(fill, matrix, observed, gapset), expected)
+
+
+def test_a_candidate_gone_wild_on_a_gap_loses_its_weight_there():
+    rng = np.random.default_rng(11)
+    truth = np.cumsum(rng.normal(size=(3, 40)), axis=1)
+    fills = [truth + 0.1 * rng.normal(size=truth.shape) for _ in range(6)]
+    w = np.array([0.4, 0.2, 0.2, 0.1, 0.07, 0.03])
+    np.testing.assert_array_equal(_without_outliers(w, fills), w)      # all agree
+    fills[5] = truth + 30.0                                             # 300× the others' spread
+    trimmed = _without_outliers(w, fills)
+    assert trimmed[5] == 0 and trimmed.sum() == pytest.approx(1.0)
+    np.testing.assert_allclose(trimmed[:5], w[:5] / 0.97)
+    # Only the outlier had weight: the weights stand (nothing better is known).
+    np.testing.assert_array_equal(_without_outliers(np.eye(6)[5], fills), np.eye(6)[5])
+    # Identical fills (distance 0 for most): nothing is judged an outlier.
+    same = [truth] * 5 + [truth + 1.0]
+    np.testing.assert_array_equal(_without_outliers(w, same), w)
