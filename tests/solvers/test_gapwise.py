@@ -184,3 +184,17 @@ def test_a_candidate_gone_wild_on_a_gap_loses_its_weight_there():
     # Identical fills (distance 0 for most): nothing is judged an outlier.
     same = [truth] * 5 + [truth + 1.0]
     np.testing.assert_array_equal(_without_outliers(w, same), w)
+
+
+def test_outliers_are_judged_again_around_the_median_of_the_others():
+    # Three wild fills drag the first median towards themselves: the first round only
+    # catches them, the second one also the fill 10× farther off than the good ones.
+    rng = np.random.default_rng(12)
+    truth = np.cumsum(rng.normal(size=(3, 30)), axis=1)
+    fills = [truth + 0.1 * rng.normal(size=truth.shape) for _ in range(4)]
+    fills += [truth + 1.0] + [truth + 20.0] * 3
+    w = np.full(8, 1 / 8)
+    once = _without_outliers(w, fills, rounds=1)
+    np.testing.assert_allclose(once, np.r_[np.full(5, 0.2), np.zeros(3)])
+    again = _without_outliers(w, fills)
+    np.testing.assert_allclose(again, np.r_[np.full(4, 0.25), np.zeros(4)])
