@@ -12,6 +12,8 @@
   ``TᵀT = Cᵀ diag(16 sin⁴(iπ/(2n))) C``, i = 0..n-1.
 - :func:`linear_fill` — row-wise linear interpolation along time, ends held.
 - :func:`spd_inverse` — the inverse of a symmetric positive definite matrix by Cholesky.
+- :func:`pair_distances` — mean and spread over time of the distance between every two
+  markers, on the frames where both are observed.
 
 Nothing here modifies its inputs.
 """
@@ -175,3 +177,33 @@ def spd_inverse(A: np.ndarray) -> np.ndarray:
             upper = np.triu(inverse)
             return upper + np.triu(upper, 1).T
     return np.linalg.inv(A)
+
+
+def pair_distances(points: np.ndarray, seen: np.ndarray, *, spread: bool = True
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Statistics of the distance between every two markers over the frames seeing both.
+
+    ``points`` is (frames, markers, 3), ``seen`` (frames, markers) bool; unobserved points
+    may hold anything. Returns (count, mean, std), each (markers, markers) and symmetric:
+    the number of frames where both markers are observed, the mean distance over them and
+    its standard deviation (None unless ``spread``); mean and std are 0 where the count
+    is 0. Each pair is computed once (half of a row-by-row loop) from the three
+    coordinates held separately, with no (frames × markers × 3) temporaries.
+    """
+    k = points.shape[1]
+    coords = [np.where(seen, points[:, :, c], 0.0) for c in range(3)]       # (n, k) each
+    count = np.zeros((k, k), dtype=np.int64)
+    mean = np.zeros((k, k))
+    std = np.zeros((k, k)) if spread else None
+    for j in range(k):
+        dist = np.sqrt(sum((x[:, j:] - x[:, j:j + 1]) ** 2 for x in coords))   # (n, k − j)
+        both = seen[:, j:j + 1] & seen[:, j:]
+        n_both = both.sum(axis=0)
+        safe = np.maximum(n_both, 1)
+        m = np.where(both, dist, 0.0).sum(axis=0) / safe
+        count[j, j:] = count[j:, j] = n_both
+        mean[j, j:] = mean[j:, j] = m
+        if spread:
+            s = np.sqrt(np.where(both, (dist - m) ** 2, 0.0).sum(axis=0) / safe)
+            std[j, j:] = std[j:, j] = s
+    return count, mean, std

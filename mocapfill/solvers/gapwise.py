@@ -43,7 +43,7 @@ from scipy.interpolate import make_interp_spline
 from scipy.optimize import nnls
 
 from ..gaps import missing_runs
-from ._linalg import linear_fill
+from ._linalg import linear_fill, pair_distances
 from ._threads import run_all
 
 Candidate = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -193,17 +193,9 @@ def distance_spread(P: np.ndarray, seen: np.ndarray) -> np.ndarray:
     Small for markers on the same rigid segment; ∞ on the diagonal and for pairs that
     share fewer than 10 observed frames.
     """
-    k = P.shape[1]
-    spread = np.full((k, k), np.inf)
-    Q = np.nan_to_num(P)
-    for j in range(k):
-        both = seen[:, j:j + 1] & seen                               # (n, markers)
-        dist = np.linalg.norm(Q - Q[:, j:j + 1], axis=2)
-        count = both.sum(axis=0)
-        mean = np.where(both, dist, 0.0).sum(axis=0) / np.maximum(count, 1)
-        var = np.where(both, (dist - mean) ** 2, 0.0).sum(axis=0) / np.maximum(count, 1)
-        spread[j] = np.where(count >= 10, np.sqrt(var), np.inf)
-        spread[j, j] = np.inf
+    count, _, std = pair_distances(P, seen)
+    spread = np.where(count >= 10, std, np.inf)
+    np.fill_diagonal(spread, np.inf)
     return spread
 
 

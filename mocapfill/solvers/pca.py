@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._linalg import as_problem, linear_fill
+from ._linalg import as_problem, linear_fill, pair_distances
 
 __all__ = ["complete"]
 
@@ -66,17 +66,8 @@ def _distances(P: np.ndarray, mask: np.ndarray) -> np.ndarray:
     ``P`` is (markers, 3, frames) with missing samples arbitrary; ``inf`` where two markers
     are never observed together.
     """
-    k = P.shape[0]
-    D = np.full((k, k), np.inf)
-    Pz = np.where(mask[:, None, :], P, 0.0)
-    for i in range(k):
-        both = mask[i][None, :] & mask  # (k, frames)
-        dist = np.sqrt(((Pz - Pz[i][None]) ** 2).sum(axis=1))  # (k, frames)
-        count = both.sum(axis=1)
-        total = np.where(both, dist, 0.0).sum(axis=1)
-        ok = count > 0
-        D[i, ok] = total[ok] / count[ok]
-    return D
+    count, mean, _ = pair_distances(P.transpose(2, 0, 1), mask.T, spread=False)
+    return np.where(count > 0, mean, np.inf)
 
 
 def _n_components(s: np.ndarray, min_cum_sv: float) -> int:

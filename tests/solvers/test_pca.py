@@ -119,3 +119,26 @@ def test_model_budget_leaves_the_rest_to_interpolation_and_keeps_observed():
     np.testing.assert_array_equal(budget[observed], M[observed])
     assert np.isfinite(budget).all()
     assert not np.allclose(full[~observed], budget[~observed])
+
+
+def test_pair_distances_match_a_pair_by_pair_count_mean_and_spread():
+    from mocapfill.solvers._linalg import pair_distances
+
+    rng = np.random.default_rng(9)
+    n, k = 120, 7
+    points = rng.normal(size=(n, k, 3))
+    seen = rng.random((n, k)) > 0.3
+    seen[:, 6] = False
+    seen[:10, 6] = True                      # marker 6 only in frames 0–9 ...
+    seen[:10, 5] = False                     # ... where marker 5 is never seen
+    points[~seen] = np.nan
+    count, mean, std = pair_distances(points, seen)
+    for i in range(k):
+        for j in range(k):
+            both = seen[:, i] & seen[:, j]
+            assert count[i, j] == both.sum()
+            d = np.linalg.norm(points[both, i] - points[both, j], axis=1)
+            np.testing.assert_allclose(mean[i, j], d.mean() if d.size else 0.0, rtol=1e-12)
+            np.testing.assert_allclose(std[i, j], d.std() if d.size else 0.0, atol=1e-12)
+    assert count[5, 6] == 0 and mean[5, 6] == 0
+    assert pair_distances(points, seen, spread=False)[2] is None
