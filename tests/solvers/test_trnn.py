@@ -238,3 +238,21 @@ def test_orthonormal_maximiser_is_the_svd_solution_and_survives_rank_deficiency(
     U = _orthonormal_maximiser(G)
     np.testing.assert_allclose(U @ U.T, np.eye(3), atol=1e-10)
     assert np.trace(U @ G) == pytest.approx(np.linalg.svd(G, compute_uv=False).sum())
+
+
+@pytest.mark.parametrize("shape", [(30, 400), (45, 20)])
+def test_rank_from_the_gram_matrix_matches_the_svd(shape):
+    from mocapfill.rank import estimate_rank
+
+    rng = np.random.default_rng(10)
+    m, n = shape
+    scales = np.r_[np.geomspace(10.0, 0.5, 6), np.zeros(min(m, n) - 6)]
+    U, _ = np.linalg.qr(rng.normal(size=(m, min(m, n))))
+    V, _ = np.linalg.qr(rng.normal(size=(n, min(m, n))))
+    D = (U * scales) @ V.T + 1e-4 * rng.normal(size=(m, n))
+    observed = rng.random((m, n)) > 0.1
+    exact = estimate_rank(D, observed)
+    fast = estimate_rank(D, observed, exact=False)
+    assert fast.rank == exact.rank
+    np.testing.assert_allclose(fast.singular_values, exact.singular_values,
+                               atol=1e-7 * exact.singular_values[0])
