@@ -188,7 +188,8 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
               help="Reject (leave missing, report) a fill whose first sample at a gap end "
                    "misses the constant-velocity prediction from the observed side by more "
                    "than MM millimetres. Default: the larger of 40 mm and 5x the marker's "
-                   "largest observed frame-to-frame acceleration; 0 disables the check.")
+                   "largest observed frame-to-frame acceleration (plus its largest step "
+                   "where one observed sample stands alone); 0 disables the check.")
 @click.option("--check", is_flag=True,
               help="Exit with code 1 when any gap is left unfilled (in any file).")
 @_zero_option

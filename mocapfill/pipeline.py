@@ -33,7 +33,9 @@ REJECTED_JUMP = "rejected: jump"
 
 # Default jump threshold: the larger of this floor (mm; MoCapTools rejects spline fills
 # missing a linear forward prediction by > 40 mm) and JUMP_FACTOR times the marker's
-# largest observed second difference (its own worst acceleration × dt²).
+# largest observed second difference (its own worst acceleration × dt²). Where a gap end
+# has a single observed sample the prediction is to stand still, and the marker's largest
+# observed frame-to-frame step is added (its own worst speed × dt).
 JUMP_FLOOR_MM = 40.0
 JUMP_FACTOR = 5.0
 
@@ -60,10 +62,12 @@ class RepairOptions:
     max_jump_mm
         Jump check. At each end of a gap that has observed samples, the fill's first
         sample is compared with the constant-velocity prediction from the last two observed
-        samples; a deviation above the threshold rejects the whole gap's fill (it stays
-        missing, reported as "rejected: jump"). None = the larger of 40 mm and 5 × the
-        marker's largest observed second difference; 0 or inf disables the check. In file
-        units when the units are unknown.
+        samples (the last sample itself where only one is observed there); a deviation
+        above the threshold rejects the whole gap's fill (it stays missing, reported as
+        "rejected: jump"). None = the larger of 40 mm and 5 × the marker's largest
+        observed second difference, plus its largest observed frame-to-frame step where
+        the prediction had only one sample; 0 or inf disables the check. In file units
+        when the units are unknown.
     """
 
     method: str = "trnn"
@@ -241,31 +245,45 @@ def _fill_ends(values: np.ndarray, observed: np.ndarray, gap: Gap, ends: str) ->
                 out=values[gap.start:gap.stop])
 
 
-def _jump_threshold(values: np.ndarray, observed: np.ndarray, options: RepairOptions,
-                    mm_per_unit: float) -> float:
-    """Largest allowed boundary deviation for one marker, in file units."""
+def _jump_thresholds(values: np.ndarray, observed: np.ndarray, options: RepairOptions,
+                     mm_per_unit: float) -> tuple[float, float]:
+    """Largest allowed boundary deviation for one marker, in file units: from a
+    constant-velocity prediction (two observed samples beside the gap) and from a
+    standing-still one (a single observed sample beside it).
+
+    Without the second, fills of fast markers were rejected wherever random loss left a
+    single sample beside a gap: on 85_12 with 20 % of the samples removed (seed 0), 90 of
+    28,870 gaps, all correct to within 0.64 mm (median 0.03), for steps of 43–57 mm.
+    """
     if options.max_jump_mm is not None:
-        return options.max_jump_mm / mm_per_unit if options.max_jump_mm > 0 else np.inf
-    seen = values[observed]
-    # Second differences over consecutive observed frames only.
-    both = observed[2:] & observed[1:-1] & observed[:-2]
-    accel = np.linalg.norm(values[2:] - 2 * values[1:-1] + values[:-2], axis=1)[both]
-    worst = float(accel.max()) if accel.size else 0.0
-    return max(JUMP_FLOOR_MM / mm_per_unit, JUMP_FACTOR * worst) if seen.size else np.inf
+        limit = options.max_jump_mm / mm_per_unit if options.max_jump_mm > 0 else np.inf
+        return limit, limit
+    if not observed.any():
+        return np.inf, np.inf
+    # Differences over consecutive observed frames only.
+    pairs = observed[1:] & observed[:-1]
+    steps = np.linalg.norm(values[1:] - values[:-1], axis=1)[pairs]
+    triples = observed[2:] & observed[1:-1] & observed[:-2]
+    accel = np.linalg.norm(values[2:] - 2 * values[1:-1] + values[:-2], axis=1)[triples]
+    worst_accel = float(accel.max()) if accel.size else 0.0
+    worst_step = float(steps.max()) if steps.size else 0.0
+    floor = JUMP_FLOOR_MM / mm_per_unit
+    return (max(floor, JUMP_FACTOR * worst_accel),
+            max(floor, worst_step + JUMP_FACTOR * worst_accel))
 
 
 def _boundary_jumps(positions: np.ndarray, observed: np.ndarray, gaps: list[Gap]
-                    ) -> np.ndarray:
-    """Worst deviation of each gap's fill from the constant-velocity prediction at its
-    ends (0 where neither end has an observed sample), for all gaps at once.
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Worst deviation of each gap's fill from the prediction at its ends, for all gaps
+    at once: (at ends with two observed samples, at ends with one), 0 where there is none.
 
-    ``positions`` (frames, markers, 3) holds the fills; at each end the prediction is the
-    observed sample there plus the step from the observed sample before it (no step when
-    that one is missing or off the clip).
+    ``positions`` (frames, markers, 3) holds the fills. With two observed samples beside
+    the gap the prediction is the last one plus the step between them (constant
+    velocity); with one, the sample itself.
     """
-    worst = np.zeros(len(gaps))
+    worst = np.zeros((2, len(gaps)))
     if not gaps:
-        return worst
+        return worst[0], worst[1]
     n = positions.shape[0]
     marker = np.array([g.marker for g in gaps])
     start = np.array([g.start for g in gaps])
@@ -281,8 +299,11 @@ def _boundary_jumps(positions: np.ndarray, observed: np.ndarray, gaps: list[Gap]
         velocity = np.where(has_before[:, None],
                             positions[e, k] - positions[before, k], 0.0)
         deviation = np.linalg.norm(positions[i, k] - (positions[e, k] + velocity), axis=1)
-        worst[valid] = np.maximum(worst[valid], deviation)
-    return worst
+        which = np.flatnonzero(valid)
+        for kind, chosen in ((0, has_before), (1, ~has_before)):
+            rows = which[chosen]
+            worst[kind, rows] = np.maximum(worst[kind, rows], deviation[chosen])
+    return worst[0], worst[1]
 
 
 def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult:
@@ -330,21 +351,23 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     positions = filled
     accepted = np.zeros(motion.observed.shape, dtype=bool)
     new_observed = motion.observed.copy()
-    thresholds: dict[int, float] = {}
+    thresholds: dict[int, tuple[float, float]] = {}
     to_check = [index for index, o in enumerate(outcomes) if o.status == FILLED]
     for index in to_check:
         gap = outcomes[index].gap
         if gap.at_start or gap.at_end:
             _fill_ends(filled[:, gap.marker, :], motion.observed[:, gap.marker], gap,
                        options.ends)
-    jumps = _boundary_jumps(filled, motion.observed, [outcomes[i].gap for i in to_check])
-    for index, jump in zip(to_check, jumps):
+    moving, still = _boundary_jumps(filled, motion.observed,
+                                    [outcomes[i].gap for i in to_check])
+    for index, jump_moving, jump_still in zip(to_check, moving, still):
         gap = outcomes[index].gap
         if gap.marker not in thresholds:
-            thresholds[gap.marker] = _jump_threshold(motion.positions[:, gap.marker],
-                                                     motion.observed[:, gap.marker],
-                                                     options, unit_mm)
-        if jump > thresholds[gap.marker]:
+            thresholds[gap.marker] = _jump_thresholds(motion.positions[:, gap.marker],
+                                                      motion.observed[:, gap.marker],
+                                                      options, unit_mm)
+        limit_moving, limit_still = thresholds[gap.marker]
+        if jump_moving > limit_moving or jump_still > limit_still:
             outcomes[index] = GapOutcome(gap, REJECTED_JUMP, options.method)
             continue
         accepted[gap.start:gap.stop, gap.marker] = True
