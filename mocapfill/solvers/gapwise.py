@@ -62,9 +62,6 @@ class GapSet:
     groups: np.ndarray          # (g, k) row indices of each group (k = 3 for markers)
     gaps: list[tuple[int, int, int]]
 
-    def rows(self, group: int) -> np.ndarray:
-        return self.groups[group]
-
 
 def row_groups(observed: np.ndarray) -> np.ndarray:
     """Rows grouped as markers (3 rows with one mask) when the mask allows, else singly."""
@@ -94,12 +91,12 @@ def ramp(values_before: np.ndarray, values_after: np.ndarray, length: int) -> np
 
 
 def gap_frames(starts: np.ndarray, stops: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For runs [starts[i], stops[i]): the run of every frame and its position in the run,
+    """For runs [starts[i], stops[i]): every frame of every run and the run it is in,
     run after run (vectorised form of a loop over ``range(a, b)`` per run)."""
     lengths = stops - starts
     run = np.repeat(np.arange(lengths.size), lengths)
     position = np.arange(lengths.sum()) - np.repeat(np.cumsum(lengths) - lengths, lengths)
-    return run, position
+    return run, starts[run] + position
 
 
 def join_ends(fill: np.ndarray, matrix: np.ndarray, observed: np.ndarray,
@@ -118,9 +115,8 @@ def join_ends(fill: np.ndarray, matrix: np.ndarray, observed: np.ndarray,
     rows = gapset.groups[g]                                          # (gaps, k)
     before = matrix[rows, (a - 1)[:, None]] - fill[rows, (a - 1)[:, None]]
     after = matrix[rows, b[:, None]] - fill[rows, b[:, None]]
-    run, position = gap_frames(a, b)
-    frames = a[run] + position
-    s = (position + 1) / (b - a + 1)[run]
+    run, frames = gap_frames(a, b)
+    s = (frames - a[run] + 1) / (b - a + 1)[run]
     for column in range(rows.shape[1]):
         r = rows[run, column]
         out[r, frames] = fill[r, frames] + (before[run, column] * (1 - s)
@@ -535,8 +531,7 @@ def _hidden_samples(hidden: list, groups: np.ndarray, observed: np.ndarray
     of each stand-in's samples: the frames it hid (it may have absorbed real missing
     frames), stand-in after stand-in, in time order."""
     g, a, b = np.array([span for span, _ in hidden]).T
-    run, position = gap_frames(a, b)
-    frames = a[run] + position
+    run, frames = gap_frames(a, b)
     rows = groups[g][run]
     kept = observed[rows[:, 0], frames]
     run = run[kept]
@@ -635,15 +630,15 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
             w = _bagged(own[index], rng)
         else:
             w = _weights_for(length_class(b - a), weights, fallback)
-        if prior and b - a >= MIN_MODEL_GAP:
-            w = (1 - prior_share) * w + prior_share * prior_w
         if b - a >= MIN_MODEL_GAP:
+            if prior:
+                w = (1 - prior_share) * w + prior_share * prior_w
             rows = groups[g]
             w = _without_outliers(w, [f[rows, a:b] for f in fills])
         shared.setdefault(w.tobytes(), (w, []))[1].append(index)
     for w, indices in shared.values():
         g, a, b = np.array([gapset.gaps[i] for i in indices]).T
-        run, position = gap_frames(a, b)
-        rows, frames = groups[g][run], (a[run] + position)[:, None]
+        run, frames = gap_frames(a, b)
+        rows, frames = groups[g][run], frames[:, None]
         out[rows, frames] = sum(wk * f[rows, frames] for wk, f in zip(w, fills) if wk > 0)
     return out, BlendReport(names, weights, len(hidden))
