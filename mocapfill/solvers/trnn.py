@@ -160,15 +160,24 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
     PD = PD.astype(dtype)
     X = X.astype(dtype)
     omega = observed.astype(dtype)
+    # The state is kept in a form that needs fewer passes over the m × n arrays than the
+    # textbook variables (every numpy operation is a pass, and the passes were a third of
+    # an iteration): P = PD − S in place of S, and Y₂ as η_C·C, where C is the clipped
+    # P_Ω(...) of the S step and η_C the η it was made with. S starts at PD − X₀, Y₁ and
+    # Y₂ at 0.
+    P = X.copy()
     M = X.copy()
-    S = PD - X
+    C = np.zeros_like(X)
+    eta_C = 1.0
     Y1 = np.zeros_like(X)
-    Y2 = np.zeros_like(X)
     eta = float(eta0)
     eye = np.eye(d, dtype=dtype)
-    # Work buffers: the updates below are the textbook expressions evaluated in place,
-    # without allocating m×n temporaries.
-    W, T, X_spare = np.empty_like(X), np.empty_like(X), np.empty_like(X)
+    # y ← a·x + y in one pass (BLAS axpy on the flat views of contiguous arrays).
+    from scipy.linalg.blas import get_blas_funcs
+
+    axpy = get_blas_funcs("axpy", (X,))
+    W, T, X_spare, C_spare = (np.empty_like(X) for _ in range(4))
+    RtR = R.T @ R
 
     converged = False
     iterations = 0
@@ -176,32 +185,39 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
         iterations = iteration              # (ruff B007: the loop variable is read after)
         X_prev = X
         e = dtype.type(eta)                 # keeps float32 products float32
-        # W = M + PD − S + (Y₁ + Y₂)/η
-        np.add(Y1, Y2, out=W)
-        W /= e
-        np.add(M, PD, out=T)
-        T -= S
-        W += T
+        # W = M + PD − S + (Y₁ + Y₂)/η = M + P + Y₁/η + (η_C/η)·C
+        np.add(M, P, out=W)
+        axpy(Y1.ravel(), W.ravel(), a=1.0 / eta)
+        axpy(C.ravel(), W.ravel(), a=eta_C / eta)
         # (10) L then R, each a d×d SPD system; Uᵀ(V R) avoids forming the m×n UᵀV. The
         # R step is (ηWᵀL + Vᵀ(U L))A⁻¹ = Wᵀ(ηK) + Vᵀ(U K) with K = L A⁻¹ (m × d): the
         # n × d × d product with A⁻¹ becomes an m × d × d one.
-        L = (e * (W @ R) + U.T @ (V @ R)) @ spd_inverse(eye + 2 * e * (R.T @ R))
-        K = L @ spd_inverse(eye + 2 * e * (L.T @ L))
+        L = (e * (W @ R) + U.T @ (V @ R)) @ spd_inverse(eye + 2 * e * RtR)
+        LtL = L.T @ L
+        K = L @ spd_inverse(eye + 2 * e * LtL)
         R = W.T @ (e * K) + V.T @ (U @ K)
+        RtR = R.T @ R
         X = np.matmul(L, R.T, out=X_spare)
         X_spare = X_prev
-        # (11a) S: soft threshold on Ω, free off Ω; T = PD − X + Y₂/η. With C = P_Ω(clip(T,
-        # ±λ/η)), S = T − C, the residual PD − X − S is C − Y₂/η and the multiplier
-        # update Y₂ + η(PD − X − S) is η·C, so Y₂ is rewritten rather than accumulated.
+        np.subtract(X, X_prev, out=T)
+        # ‖X‖² = tr(LᵀL RᵀR), from the two d × d Gram matrices instead of a pass over X.
+        norm_X = np.sqrt(max(float(np.vdot(LtL, RtR)), 0.0))
+        change = np.linalg.norm(T) / (norm_X or 1.0)
+        # (11a) S: soft threshold on Ω, free off Ω. With T = PD − X + Y₂/η and
+        # C' = P_Ω(clip(T, ±λ/η)), S = T − C', the residual PD − X − S is C' − Y₂/η and
+        # the multiplier update Y₂ + η(PD − X − S) is η·C'.
         np.subtract(PD, X, out=T)
-        np.divide(Y2, e, out=S)             # S holds Y₂/η until the last line
-        T += S
-        np.clip(T, -lam / eta, lam / eta, out=Y2)
-        Y2 *= omega                         # Y₂ holds C
-        np.subtract(Y2, S, out=S)           # the residual PD − X − S
-        residual_norm = np.linalg.norm(S)
-        np.subtract(T, Y2, out=S)
-        Y2 *= e
+        axpy(C.ravel(), T.ravel(), a=eta_C / eta)
+        C_new = np.clip(T, -lam / eta, lam / eta, out=C_spare)
+        C_new *= omega
+        residual_norm = np.inf
+        if change <= tol:                   # the other criterion, only when it can matter
+            np.multiply(C, eta_C / eta, out=W)
+            np.subtract(C_new, W, out=W)
+            residual_norm = np.linalg.norm(W)
+        np.subtract(PD, T, out=P)           # PD − S = PD − T + C'
+        P += C_new
+        C_spare, C, eta_C = C, C_new, eta
         # (11b) M: (ηX − Y₁)(ηI + μTᵀT)⁻¹ through the DCT.
         np.multiply(X, e, out=W)
         W -= Y1
@@ -212,16 +228,14 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
         # (13) U, V by Lemma 3, V using the new U.
         U = _orthonormal_maximiser(L @ (V @ R).T)
         V = _orthonormal_maximiser(R @ (U @ L).T)
-        # Y₁ with the η of this iteration (Y₂ was updated with S), then the schedule.
-        np.subtract(M, X, out=W)
-        W *= e
-        Y1 += W
+        # Y₁ ← Y₁ + η(M − X) with the η of this iteration, then the schedule.
+        np.subtract(M, X, out=T)
+        axpy(T.ravel(), Y1.ravel(), a=eta)
         eta = min(rho * eta, eta_max)
-        np.subtract(X, X_prev, out=W)
-        change = np.linalg.norm(W) / (np.linalg.norm(X) or 1.0)
         if residual_norm / norm_PD <= tol and change <= tol:
             converged = True
             break
+    S = np.subtract(PD, P, out=P)
     return TrnnResult(X=X.astype(np.float64), S=S.astype(np.float64), iterations=iterations,
                       converged=converged)
 

@@ -207,6 +207,32 @@ def test_iteration_equals_the_textbook_updates():
     np.testing.assert_allclose(result.S, S_ref, atol=1e-8, rtol=0)
 
 
+def test_iteration_stops_at_the_first_iterate_meeting_both_criteria():
+    # The loop judges the constraint residual only once the change of X is small enough;
+    # it must still stop exactly where the textbook iteration first meets both. Here the
+    # change criterion is met three iterations before the residual one.
+    rng = np.random.default_rng(7)
+    m, n, r = 10, 40, 2
+    D = rng.normal(size=(m, r)) @ rng.normal(size=(r, n)) + 0.05 * rng.normal(size=(m, n))
+    observed = rng.random((m, n)) > 0.2
+    kwargs = dict(rank=r, lam=1.0, mu=5.0, rho=1.02, eta0=1.0)
+    tol = 3e-3
+    result = trnn(D, observed, tol=tol, max_iter=200, **kwargs)
+    assert result.converged
+    PD = np.where(observed, D, 0.0)
+
+    def criteria(k):
+        X, S = _textbook_trnn(D, observed, iterations=k, **kwargs)
+        X_prev, _ = _textbook_trnn(D, observed, iterations=k - 1, **kwargs)
+        return (np.linalg.norm(PD - X - S) / np.linalg.norm(PD),
+                np.linalg.norm(X - X_prev) / np.linalg.norm(X))
+
+    k = result.iterations
+    assert max(criteria(k)) <= tol
+    residual, change = criteria(k - 1)
+    assert residual > tol >= change
+
+
 def test_spd_inverse_matches_lu_and_falls_back_on_an_indefinite_matrix():
     from mocapfill.solvers._linalg import spd_inverse
 
