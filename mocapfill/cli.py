@@ -164,9 +164,9 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
               help="ρ > 1, growth factor of the penalty η per iteration. Default 1.2 "
                    "(trnn) / 1.4 (trnn-paper).")
 @click.option("--eta0", type=float, default=None,
-              help="η₀ > 0, initial penalty. Default 1e-2 (trnn) / 1e-5 (trnn-paper).")
+              help="η₀ > 0, initial penalty. Default 0.05 (trnn) / 1e-5 (trnn-paper).")
 @click.option("--tol", type=float, default=None,
-              help="ε, relative stopping tolerance. Default 1e-5 (trnn) / 1e-4 (trnn-paper).")
+              help="ε, relative stopping tolerance. Default 1e-4 (trnn and trnn-paper).")
 @click.option("--max-iter", type=int, default=None, help="Iteration cap. Default 500.")
 @click.option("--max-gap", default=None, metavar="FRAMES|SECONDSs",
               help="Leave gaps longer than this missing (and report them): frames (40) or "
