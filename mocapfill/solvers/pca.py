@@ -152,50 +152,64 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
     """Predictions of marker i on its gap frames, (frames, 3), NaN elsewhere."""
     k, n = mask.shape
     others = np.array([j for j in range(k) if j != i], dtype=int)
+    mask_others = mask[others]
     obs_i = mask[i]
     fill = np.full((n, 3), np.nan)
     # Frame groups that end with the same predictors share one model (the training frames
     # depend on the predictors only): on clips with many overlapping gaps this turns
     # thousands of PCAs into tens.
     models: dict[tuple[int, ...], tuple] = {}
+    # Where the fallback that drops gapped predictors ends, from each starting set (it
+    # depends on that set only; thousands of frame groups share a few starting sets).
+    reached: dict[tuple[int, ...], tuple[tuple[int, ...], np.ndarray] | None] = {}
 
-    def solve(frames: np.ndarray, relax: bool, split: bool) -> None:
-        avail = mask[others][:, frames].all(axis=1)
-        usable = avail & (relax | complete_markers[others] | ~distal[others])
-        preds = [int(j) for j in others[usable]]
-        while preds:
-            train = obs_i & mask[preds].all(axis=0)
-            if train.sum() >= min_frames:
-                w = np.append(weights[preds], mm_weight)
-                if np.all(w[:-1] == 0):
+    def fallback(start: tuple[int, ...]) -> tuple[tuple[int, ...], np.ndarray] | None:
+        """The predictors with enough training frames, and those frames; None if none."""
+        if start not in reached:
+            preds, found = list(start), None
+            while preds:
+                train = obs_i & mask[preds].all(axis=0)
+                if train.sum() >= min_frames:
+                    if np.any(weights[preds] != 0):
+                        found = (tuple(preds), train)
                     break
-                key = tuple(preds)
+                gappy = [j for j in preds if not mask[j].all()]
+                if not gappy:
+                    break
+                # drop the gapped predictor that costs most training frames
+                preds.remove(max(gappy, key=lambda j: int((obs_i & ~mask[j]).sum())))
+            reached[start] = found
+        return reached[start]
+
+    def solve(frames: np.ndarray, avail: np.ndarray, relax: bool, split: bool) -> None:
+        usable = avail & (relax | complete_markers[others] | ~distal[others])
+        found = fallback(tuple(int(j) for j in others[usable]))
+        if found is not None:
+            key, train = found
+            if key in models or max_models is None or len(models) < max_models:
                 if key not in models:
-                    if max_models is not None and len(models) >= max_models:
-                        break               # budget spent: these frames take the backup
-                    models[key] = _model(X, i, preds, np.flatnonzero(train), w, min_cum_sv,
-                                         transform)
+                    w = np.append(weights[list(key)], mm_weight)
+                    models[key] = _model(X, i, list(key), np.flatnonzero(train), w,
+                                         min_cum_sv, transform)
                 fill[frames] = _predict(X, models[key], frames)
                 return
-            gappy = [j for j in preds if not mask[j].all()]
-            if not gappy:
-                break
-            # drop the gapped predictor that costs most training frames
-            preds.remove(max(gappy, key=lambda j: int((obs_i & ~mask[j]).sum())))
+            # budget spent: these frames take the split, then the backup
         if split:
-            patterns, groups = np.unique(mask[others][:, frames].T, axis=0,
+            # Within a group the other markers' visibility is one pattern: its avail.
+            patterns, groups = np.unique(mask_others[:, frames].T, axis=0,
                                          return_inverse=True)
             groups = np.asarray(groups).ravel()
             if len(patterns) > 1:
                 for g in range(len(patterns)):
-                    solve(frames[groups == g], relax=False, split=False)
+                    solve(frames[groups == g], patterns[g], relax=False, split=False)
                 return
         if not relax:
-            solve(frames, relax=True, split=False)
+            solve(frames, avail, relax=True, split=False)
             return
         fill[frames] = backup_i[:, frames].T
 
-    solve(np.flatnonzero(~obs_i), relax=False, split=True)
+    gap = np.flatnonzero(~obs_i)
+    solve(gap, mask_others[:, gap].all(axis=1), relax=False, split=True)
     return fill
 
 
