@@ -291,7 +291,8 @@ def plan(paths: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None =
     mapped to the same output.
     """
     if (out_dir is None) == (not in_place):
-        raise ParameterError("give an output folder or in_place=True (not both)")
+        raise ParameterError("give an output folder (-o OUTDIR) or in-place (--in-place), "
+                             "not both")
     if suffix is not None:
         suffix = suffix if suffix.startswith(".") else f".{suffix}"
         if in_place:

@@ -8,6 +8,8 @@ Heavy imports (numpy, scipy) happen inside the commands so ``mocapfill --help`` 
 from __future__ import annotations
 
 import json
+import math
+import os
 import sys
 from pathlib import Path
 
@@ -34,11 +36,43 @@ def _fail(message: str, code: int) -> None:
     text = " ".join(message.split())
     text = text.encode("utf-8", "backslashreplace").decode("utf-8")
     click.echo(f"mocapfill: error: {text}", err=True)
+    if code == EXIT_INTERRUPTED and _solver_threads_running():
+        # The solver threads may be inside C++ code (pocketfft): finalising the interpreter
+        # under them can abort the process ("terminate called without an active
+        # exception", exit 134 instead of 130). Nothing is left to clean up: outputs are
+        # written atomically and their temporaries were removed on the way here.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
     sys.exit(code)
+
+
+def _solver_threads_running() -> bool:
+    import threading
+
+    return any(thread.name.startswith("mocapfill-") and thread.is_alive()
+               for thread in threading.enumerate())
 
 
 class _Group(click.Group):
     """Turns mocapfill's typed errors into one line and an exit code, never a traceback."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True,
+             **extra):
+        # click prints usage errors as a usage block plus an error line; ours are one line
+        # like every other error (the usage stays one --help away).
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode, **extra)
+        try:
+            code = super().main(args, prog_name, complete_var, False, **extra)
+        except click.UsageError as exc:
+            where = f" (see '{exc.ctx.command_path} --help')" if exc.ctx is not None else ""
+            _fail(f"{exc.format_message()}{where}", EXIT_USAGE)
+        except click.ClickException as exc:
+            _fail(exc.format_message(), exc.exit_code)
+        except click.Abort:
+            _fail("interrupted", EXIT_INTERRUPTED)
+        sys.exit(code if isinstance(code, int) else 0)
 
     def invoke(self, ctx: click.Context):
         import warnings
@@ -107,8 +141,9 @@ def _parse_max_gap(text: str | None, rate: float) -> int | None:
     except ValueError:
         raise ParameterError(f"--max-gap must be frames (40) or seconds (0.5s), got {text!r}") \
             from None
-    if frames < 0:
-        raise ParameterError(f"--max-gap must be ≥ 0, got {text!r}")
+    if not math.isfinite(frames) or frames < 0:
+        raise ParameterError(f"--max-gap must be a finite number ≥ 0 (at this file's rate), "
+                             f"got {text!r}")
     return int(round(frames))
 
 
@@ -230,6 +265,8 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
     from . import formats
     from .pipeline import repair as run_repair
 
+    if gaps_report is not None:
+        _check_gaps_report(gaps_report, in_path, out_path)
     motion = _read(in_path, zero_is_missing)
     # A BVH/AMC written back to its own format is completed in joint-channel space.
     space = "channels" if formats.same_skeleton_format(in_path, out_path) else "positions"
@@ -242,6 +279,21 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
     click.echo(_summary_line(result, in_path, out_path), err=True)
     if check and result.left:
         sys.exit(EXIT_CHECK_FAILED)
+
+
+def _check_gaps_report(report: Path, in_path: Path, out_path: Path) -> None:
+    """Before any work: a .csv/.json name in an existing folder, neither IN nor OUT."""
+    from .errors import ParameterError
+
+    if report.suffix.lower() not in (".csv", ".json"):
+        raise ParameterError(f"--gaps-report must name a .csv or .json file, got {report}")
+    folder = report.parent if str(report.parent) else Path(".")
+    if not folder.is_dir():
+        raise ParameterError(f"--gaps-report {report}: folder {folder} does not exist")
+    for other, role in ((in_path, "the input"), (out_path, "the output")):
+        if report.resolve() == other.resolve() or (
+                report.exists() and other.exists() and os.path.samefile(report, other)):
+            raise ParameterError(f"--gaps-report {report} is {role} file")
 
 
 def _refuse_batch_options(paths, **batch_only) -> None:
@@ -347,6 +399,9 @@ def _solver_options(**values) -> dict:
     from .errors import ParameterError
 
     options = {k: v for k, v in values.items() if v is not None}
+    for key, value in options.items():
+        if not math.isfinite(value):
+            raise ParameterError(f"--{key.replace('_', '-')} must be finite, got {value}")
     positive = ("lam", "eta0", "tol", "max_iter", "rank")
     for key in positive:
         if key in options and not options[key] > 0:

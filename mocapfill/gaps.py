@@ -104,11 +104,14 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
     """
     if (mr is None) == (ml is None):
         raise ParameterError("give exactly one of mr (random missing) or ml (continuous missing)")
+    if seed is not None and seed < 0:
+        raise ParameterError(f"seed must be ≥ 0, got {seed}")
     rng = np.random.default_rng(seed)
     observed = motion.observed.copy()
     candidates = np.flatnonzero(motion.fillable & observed.any(axis=0))
     if candidates.size == 0:
-        raise NothingToRepair("no marker with observed samples to remove")
+        where = f"{motion.path}: " if motion.path is not None else ""
+        raise NothingToRepair(f"{where}no marker with observed samples to remove")
     n_frames = motion.n_frames
     if mr is not None:
         if not 0 <= mr < 1:

@@ -31,8 +31,14 @@ class Score:
     unfilled_samples: int
 
     def as_dict(self) -> dict:
-        return {"rmse": self.rmse, "rmse_3d": self.rmse_3d, "rmse_mm": self.rmse_mm,
-                "rmse_3d_mm": self.rmse_3d_mm, "missing_samples": self.missing_samples,
+        """The fields, with None for an error that is undefined (no sample scored): JSON
+        has no NaN."""
+        def finite(value: float | None) -> float | None:
+            return None if value is None or not np.isfinite(value) else value
+
+        return {"rmse": finite(self.rmse), "rmse_3d": finite(self.rmse_3d),
+                "rmse_mm": finite(self.rmse_mm), "rmse_3d_mm": finite(self.rmse_3d_mm),
+                "missing_samples": self.missing_samples,
                 "unfilled_samples": self.unfilled_samples}
 
 
@@ -56,12 +62,10 @@ def score(truth: Motion, repaired: Motion, gapped: Motion | None = None) -> Scor
     present in one and missing in the other, or present in both with different values.
     A sample still missing in ``repaired`` counts as unfilled and is left out of the RMSE.
     """
-    if truth.positions.shape != repaired.positions.shape:
-        raise MocapfillError(f"truth has {truth.n_frames} frames × {truth.n_markers} markers, "
-                             f"repaired has {repaired.n_frames} × {repaired.n_markers}")
+    for other, role in ((repaired, "repaired"), (gapped, "gapped")):
+        if other is not None:
+            _check_comparable(truth, other, role)
     if gapped is not None:
-        if gapped.positions.shape != truth.positions.shape:
-            raise MocapfillError("gapped file does not match the truth in frames × markers")
         target = truth.observed & ~gapped.observed
     else:
         both = truth.observed & repaired.observed
@@ -75,3 +79,27 @@ def score(truth: Motion, repaired: Motion, gapped: Motion | None = None) -> Scor
     return Score(value, value_3d, None if factor is None else value * factor,
                  None if factor is None else value_3d * factor, int(scored.sum()),
                  int((target & ~repaired.observed).sum()))
+
+
+def _name(motion: Motion, role: str) -> str:
+    return f"{role} file {motion.path}" if motion.path is not None else f"{role} clip"
+
+
+def _check_comparable(truth: Motion, other: Motion, role: str) -> None:
+    """The same frames, markers (by label, in order) and units as the truth, or an error
+    naming both files: a silent mismatch would score the wrong samples."""
+    if other.positions.shape != truth.positions.shape:
+        raise MocapfillError(f"{_name(other, role)} has {other.n_frames} frames × "
+                             f"{other.n_markers} markers, {_name(truth, 'truth')} "
+                             f"{truth.n_frames} × {truth.n_markers}")
+    if [x.strip() for x in other.labels] != [x.strip() for x in truth.labels]:
+        first = next(i for i, (a, b) in enumerate(zip(truth.labels, other.labels))
+                     if a.strip() != b.strip())
+        raise MocapfillError(f"{_name(other, role)} names marker {first + 1} "
+                             f"{other.labels[first]!r}, {_name(truth, 'truth')} "
+                             f"{truth.labels[first]!r}")
+    a, b = mm_per_unit(truth.units), mm_per_unit(other.units)
+    if a is not None and b is not None and a != b:
+        raise MocapfillError(f"{_name(other, role)} is in {other.units}, "
+                             f"{_name(truth, 'truth')} in {truth.units}")
+

@@ -7,6 +7,7 @@ comes back bit-identical, and only samples the policy allows are filled.
 from __future__ import annotations
 
 import fnmatch
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -16,7 +17,7 @@ from .errors import NothingToRepair, ParameterError, SolverError
 from .gaps import Gap, find_gaps, missing_runs
 from .motion import Motion
 from .scaling import UnitScale
-from .solvers import get_method
+from .solvers import get_method, option_names
 from .solvers._threads import release_memory
 
 ENDS = ("leave", "hold", "extrapolate")
@@ -88,7 +89,15 @@ class RepairOptions:
             raise ParameterError(f"max jump must be ≥ 0 mm, got {self.max_jump_mm}")
         if self.space not in SPACES:
             raise ParameterError(f"space must be one of {', '.join(SPACES)}, got {self.space!r}")
-        get_method(self.method)  # fail early on an unknown method
+        # Fail early on an unknown method, or an option the method does not take (batches
+        # would otherwise fail file after file).
+        unknown = sorted(set(self.solver_options) - option_names(get_method(self.method)))
+        if unknown:
+            given = ", ".join(f"--{name.replace('_', '-')}" for name in unknown)
+            raise ParameterError(f"{given} does not apply to method {self.method!r}")
+        for name, value in self.solver_options.items():
+            if isinstance(value, (int, float)) and not math.isfinite(value):
+                raise ParameterError(f"--{name.replace('_', '-')} must be finite, got {value}")
 
 
 END_MARGIN = 0.1
@@ -225,6 +234,11 @@ def _named(motion: Motion) -> str:
 def _complete_clip(motion: Motion, matrix: np.ndarray, observed: np.ndarray,
                    options: RepairOptions) -> np.ndarray:
     """:func:`complete_matrix` with the options; a solver failure names the clip's file."""
+    rank = options.solver_options.get("rank")
+    if rank is not None and rank > min(matrix.shape[0], min(matrix.shape[1], WINDOW_FRAMES)):
+        raise ParameterError(f"{_named(motion)}--rank {rank} is larger than this clip allows "
+                             f"({min(matrix.shape[0], matrix.shape[1])}: the smaller of 3 × "
+                             "markers with data and frames)")
     try:
         return complete_matrix(matrix, observed, options.method, rate=motion.rate,
                                overwrite=True, **options.solver_options)
@@ -327,7 +341,8 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
         return repair_channels(motion, options)
     started = time.perf_counter()
     if motion.n_frames < 2:
-        raise NothingToRepair(f"a clip of {motion.n_frames} frame(s) cannot be repaired")
+        raise NothingToRepair(f"{_named(motion)}a clip of {motion.n_frames} frame(s) cannot be "
+                              "repaired")
     if not (motion.observed[:, motion.fillable]).any():
         raise NothingToRepair(f"{_named(motion)}no marker has a single observed sample; "
                               "nothing to fill from")

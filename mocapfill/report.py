@@ -4,6 +4,8 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
+import tempfile
 from pathlib import Path
 
 from .errors import FormatError
@@ -103,4 +105,17 @@ def write_gaps_report(result, path: Path) -> None:
         text = buffer.getvalue()
     else:
         raise FormatError(path, "gaps report must be .csv or .json", exit_code=2)
-    path.write_text(text)
+    # Atomically, like the repaired file: a failed write leaves no half-written report.
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp",
+                               dir=path.parent if str(path.parent) else ".")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        from .formats import _umask
+
+        os.chmod(tmp, 0o666 & ~_umask())     # what a plain open() would give
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise

@@ -88,10 +88,26 @@ def test_check_exits_1_when_gaps_are_left(clip_files):
     (["simulate", "truth.npz", "s.npz", "--mr", "1.5"], 2, "mr must be in [0, 1)"),
     (["info", "skeleton.asf"], 2, "pass the .amc"),
     (["info", "broken.npz"], 123, "broken.npz"),
+    # Found by an audit of the command line: these raised tracebacks (exit 1), printed
+    # click's usage block, or wrote the output before failing.
+    (["repair", "gapped.npz", "o.npz", "--method", "linear", "--rank", "5"], 2,
+     "--rank does not apply to method 'linear'"),
+    (["repair", "gapped.npz", "o.npz", "--method", "trnn-lowrank", "--rank", "31"], 2,
+     "gapped.npz: --rank 31 is larger than this clip allows (30"),
+    (["repair", "gapped.npz", "o.npz", "--mu", "nan"], 2, "--mu must be finite"),
+    (["repair", "gapped.npz", "o.npz", "--max-gap", "infs"], 2, "--max-gap must be a finite"),
+    (["repair", "gapped.npz", "o.npz", "--method", "bogus"], 2,
+     "Invalid value for '--method'"),
+    (["repair", "gapped.npz", "o.npz", "--gaps-report", "nodir/g.csv"], 2,
+     "folder nodir does not exist"),
+    (["repair", "gapped.npz", "o.npz", "--gaps-report", "g.txt"], 2, ".csv or .json"),
+    (["simulate", "truth.npz", "s.npz", "--ml", "10", "--seed", "-1"], 2, "seed must be ≥ 0"),
+    (["repair", "one.npz", "o.npz"], 123, "one.npz: a clip of 1 frame(s) cannot be repaired"),
 ])
 def test_bad_input_gives_one_line_error_and_exit_code(clip_files, monkeypatch, args, code, words):
     monkeypatch.chdir(clip_files)
     (clip_files / "broken.npz").write_bytes(b"not a zip file at all")
+    formats.write(smooth_clip(1, 3), clip_files / "one.npz")
     result = run(*args)
     assert result.exit_code == code
     assert words in result.stderr
@@ -111,6 +127,43 @@ def test_failed_write_leaves_no_partial_output(clip_files, monkeypatch):
     result = run("repair", clip_files / "gapped.npz", clip_files / "o.npz")
     assert result.exit_code == 123
     assert list(clip_files.glob("*o.npz*")) == []
+
+
+def test_gaps_report_never_replaces_the_input_or_the_output(clip_files, monkeypatch):
+    monkeypatch.chdir(clip_files)
+    formats.write(formats.read(clip_files / "gapped.npz"), clip_files / "in.csv")
+    before = (clip_files / "in.csv").read_bytes()
+    for report in ("./in.csv", "out.csv"):
+        result = run("repair", "in.csv", "out.csv", "--method", "linear",
+                     "--gaps-report", report)
+        assert result.exit_code == 2 and "--gaps-report" in result.stderr
+        assert (clip_files / "in.csv").read_bytes() == before
+        assert not (clip_files / "out.csv").exists()
+    assert run("repair", "in.csv", "out.csv", "--gaps-report", "gaps.csv").exit_code == 0
+    assert (clip_files / "gaps.csv").read_text().startswith("marker,first_frame")
+    assert sorted(p.name for p in clip_files.glob(".*")) == []    # no temporaries left
+
+
+def test_score_json_is_valid_json_when_nothing_is_scored(clip_files):
+    def no_nan(constant):
+        raise AssertionError(f"{constant} is not JSON")
+
+    result = run("score", clip_files / "truth.npz", clip_files / "truth.npz", "--json")
+    payload = json.loads(result.stdout, parse_constant=no_nan)
+    assert payload["missing_samples"] == 0 and payload["rmse"] is None
+
+
+def test_score_refuses_files_whose_markers_or_units_differ(clip_files):
+    truth = formats.read(clip_files / "truth.npz")
+    renamed = truth.replace(labels=("OTHER",) + tuple(truth.labels[1:]))
+    formats.write(renamed, clip_files / "renamed.npz")
+    formats.write(truth.replace(positions=truth.positions / 1000, units="m"),
+                  clip_files / "metres.npz")
+    for other, words in (("renamed.npz", "'OTHER'"), ("metres.npz", "is in m")):
+        result = run("score", clip_files / "truth.npz", clip_files / other)
+        assert result.exit_code == 123
+        assert words in result.stderr and "truth.npz" in result.stderr
+        assert len(result.stderr.strip().splitlines()) == 1
 
 
 def test_input_file_is_never_modified(clip_files):

@@ -49,3 +49,17 @@ def get_method(name: str) -> Method:
         raise ParameterError(
             f"unknown method {name!r}; choose one of {', '.join(METHODS)}") from None
     return getattr(importlib.import_module(module_name), func_name)
+
+
+def option_names(fn: Method) -> frozenset[str]:
+    """The keyword options ``fn`` takes (besides matrix and observed).
+
+    A method that passes ``**options`` on to another declares it as ``fn.forwards_to``.
+    """
+    import inspect
+
+    params = list(inspect.signature(fn).parameters.values())[2:]
+    names = {p.name for p in params if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
+    forwards_to = getattr(fn, "forwards_to", None)
+    return frozenset(names | (option_names(forwards_to) if forwards_to else set()))
+

@@ -405,3 +405,6 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     completed, _ = blend(matrix, observed, candidates, default="trnn", seed=seed,
                          validation_fraction=validation_fraction)
     return completed
+
+
+complete.forwards_to = complete_lowrank     # its **trnn_options (see solvers.option_names)
