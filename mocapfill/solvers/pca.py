@@ -210,6 +210,11 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
 
     gap = np.flatnonzero(~obs_i)
     solve(gap, mask_others[:, gap].all(axis=1), relax=False, split=True)
+    # ``solve`` refers to itself: a reference cycle that would keep its closure (the
+    # models, the search memo, the masks) alive until the next garbage collection, which
+    # on a long clip let the freed memory of many markers pile up (216,000 frames: peak
+    # 1.44 → 2.19 GB). Emptying its cell frees them now.
+    del solve
     return fill
 
 
