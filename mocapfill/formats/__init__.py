@@ -5,7 +5,8 @@ Each format module exposes ``read(path, **options) -> Motion`` and
 from its own format patches a copy of the original file (only the samples that were
 missing and are now observed change); otherwise it writes a new file. ``write`` here
 makes every output atomic: the module writes a temporary file beside the target, which is
-renamed over it only when complete.
+renamed over it only when complete. Readers may return a clip of no frames (a BVH with
+``Frames: 0``, an empty NPZ) so that ``info`` can report it; ``write`` refuses one.
 
 A skeleton format (BVH, ASF/AMC) may also expose ``channels(motion)`` and
 ``with_channels(motion, values, observed)`` so a repair can work in channel space and
@@ -98,11 +99,22 @@ def _umask() -> int:
 
 
 def write(motion: Motion, path: str | os.PathLike, **options) -> None:
-    """Write a motion file atomically; the suffix picks the format."""
+    """Write a motion file atomically; the suffix picks the format.
+
+    Raises
+    ------
+    FormatError
+        Naming ``path``: the suffix is unknown, the output is the input file, its folder
+        does not exist, the clip has no frames (TRC, CSV and AMC cannot hold one, and in
+        any format an empty output would pass for a result), or the format's writer
+        refuses the clip.
+    """
     path = Path(path)
     module = format_module(path)
     if motion.path is not None and path.exists() and path.resolve() == motion.path.resolve():
         raise FormatError(path, "refusing to overwrite the input file")
+    if motion.n_frames == 0:
+        raise FormatError(path, "refusing to write a clip with no frames")
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
         raise FormatError(path, f"output folder {directory} does not exist")

@@ -175,10 +175,68 @@ def parse_number(text: str) -> float:
     return float(text)
 
 
+def row_cells(lines: Sequence[str], index: int, delimiter: str) -> tuple[list[str], bool]:
+    """Raw cells of a data row, and whether the file ends inside that row.
+
+    A file that does not end with a line ending may have been cut short (an interrupted
+    copy or download) anywhere in its last line, a number included (``956.933`` cut to
+    ``956``). The last cell of such a row is therefore left out of the returned cells:
+    readers take it as missing, and may accept the row holding fewer cells than a
+    complete one.
+    """
+    body, ending = split_ending(lines[index])
+    cells = split_cells(body, delimiter)
+    cut = not ending and index == len(lines) - 1
+    return (cells[:-1] if cut else cells), cut
+
+
+def ends_inside_row(lines: Sequence[str], row_lines: np.ndarray) -> bool:
+    """Whether the file ends inside its last data row (no line ending after it)."""
+    return (row_lines.size > 0 and int(row_lines[-1]) == len(lines) - 1
+            and not split_ending(lines[-1])[1])
+
+
+#: Note a reader adds when the file ends inside its last data row.
+CUT_ROW_NOTE = ("the file ends inside its last row (no final line ending): that row's last "
+                "cell is not read (it may be cut short)")
+
+
+@dataclass(frozen=True)
+class RowWidth:
+    """How many cells a complete data row holds, and what sets that number.
+
+    A row may hold fewer cells only when the file ends inside it (see :func:`row_cells`).
+    Cells beyond ``cells`` are accepted when they are blank (a trailing delimiter, as
+    OpenSim writes after every cell, or padding a spreadsheet adds); with ``triplets``
+    (TRC) they may also be whole x, y, z triplets of markers the names line does not name,
+    as Motion Analysis Cortex exports write them.
+    """
+
+    cells: int
+    set_by: str         # ends "line N holds M cells; ...": "the header row has", ...
+    triplets: bool = False
+
+    def check(self, path: Path, cells: Sequence[str], index: int, cut: bool) -> None:
+        """Raise FormatError naming the line when ``cells`` is not a complete row."""
+        n_cells = len(cells)
+        if n_cells == self.cells or (n_cells < self.cells and cut):
+            return
+        if n_cells > self.cells:
+            if all(not cell_text(c) for c in cells[self.cells:]):
+                return
+            written = n_cells - (0 if cell_text(cells[-1]) else 1)    # less a trailing one
+            if self.triplets and (cut or (written - self.cells) % 3 == 0):
+                return
+        extra = (" (cells beyond those must be whole x, y, z triplets)"
+                 if self.triplets and n_cells > self.cells else "")
+        raise FormatError(path, f"line {index + 1} holds {n_cells} cells; {self.set_by} "
+                                f"{self.cells}{extra}")
+
+
 def parse_markers(path: Path, lines: Sequence[str], row_lines: np.ndarray,
                   columns: np.ndarray, delimiter: str,
                   column_name: Callable[[int, int], str],
-                  last_cell_suspect: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                  width: RowWidth) -> tuple[np.ndarray, np.ndarray]:
     """Positions and observed mask of the marker cells of the given rows.
 
     Parameters
@@ -189,24 +247,23 @@ def parse_markers(path: Path, lines: Sequence[str], row_lines: np.ndarray,
         As in :class:`TextSource`.
     column_name
         ``column_name(marker, axis)`` names a column in an error message.
-    last_cell_suspect
-        The file ends inside its last row (no final line ending): the last cell of that
-        row may be cut short and is read as missing.
+    width
+        The cells a complete row holds; a row holding another number is an error.
 
     Returns
     -------
     positions, observed
         (frames, markers, 3) with NaN at missing samples, and (frames, markers) bool.
-        A sample is missing when any of its cells is missing or absent (short row).
+        A sample is missing when any of its cells is missing, or absent or cut short in a
+        row the file ends inside (see :func:`row_cells`).
     """
     n_frames, n_markers = len(row_lines), len(columns)
     flat = columns.reshape(-1).tolist()
     values = np.full((n_frames, len(flat)), np.nan)
     for f, index in enumerate(row_lines):
-        body, ending = split_ending(lines[index])
-        cells = split_cells(body, delimiter)
-        if last_cell_suspect and not ending and index == len(lines) - 1:
-            cells = cells[:-1]
+        cells, cut = row_cells(lines, index, delimiter)
+        if len(cells) != width.cells:
+            width.check(path, cells, index, cut)
         try:        # fast path: every cell a plain number
             values[f] = [float(cells[c]) for c in flat]
             continue
@@ -232,10 +289,11 @@ def parse_markers(path: Path, lines: Sequence[str], row_lines: np.ndarray,
 
 def parse_column(path: Path, lines: Sequence[str], row_lines: np.ndarray, column: int,
                  delimiter: str, name: str) -> np.ndarray:
-    """One column (Frame, Time) of the data rows as floats, NaN where empty or absent."""
+    """One column (Frame, Time) of the data rows as floats, NaN where empty, absent or
+    cut short (see :func:`row_cells`)."""
     out = np.full(len(row_lines), np.nan)
     for f, index in enumerate(row_lines):
-        cells = split_cells(split_ending(lines[index])[0], delimiter)
+        cells = row_cells(lines, index, delimiter)[0]
         if column < len(cells):
             text = cell_text(cells[column])
             try:
@@ -244,6 +302,29 @@ def parse_column(path: Path, lines: Sequence[str], row_lines: np.ndarray, column
                 raise FormatError(path, f"row {index + 1}, column {name}: "
                                         f"cannot parse {text!r}") from None
     return out
+
+
+def frame_rate(path: Path, text: str, what: str) -> float:
+    """A frame rate the file states, in Hz; FormatError unless a positive finite number.
+
+    A file stating an absurd rate (``inf``, ``0``, ``-120``, ``nan``, ``abc``) is damaged or
+    mis-edited: reading it as some default rate would silently rescale every time and
+    every ``--max-gap`` in seconds.
+    """
+    try:
+        rate = float(text)
+    except ValueError:
+        rate = float("nan")
+    if not (np.isfinite(rate) and rate > 0):
+        raise FormatError(path, f"{what} is {text!r}, not a frame rate (a positive, finite "
+                                "number of Hz)")
+    return rate
+
+
+def writable_rate(rate: float, default: float) -> float:
+    """The rate a new file states: ``default`` for a clip without one (C3D with no
+    ``POINT:RATE`` reads as 0 Hz), which is also the rate its Time column is written at."""
+    return rate if np.isfinite(rate) and rate > 0 else default
 
 
 def rate_from_times(times: np.ndarray) -> float | None:
@@ -325,7 +406,7 @@ def column_styles(source: TextSource, cells_needed: set[int]) -> dict[int, Numbe
     decimals = dict.fromkeys(needed, -1)
     exponent: set[int] = set()
     for index in source.row_lines:
-        cells = split_cells(split_ending(source.lines[index])[0], source.delimiter)
+        cells = row_cells(source.lines, index, source.delimiter)[0]
         n_cells = len(cells)
         for c in needed:
             if c >= n_cells:
@@ -372,6 +453,7 @@ def patched_lines(source: TextSource, motion: Motion,
     styles = (column_styles(source, needed) if decimals is None
               else dict.fromkeys(needed, NumberStyle(int(decimals))))
     lines = list(source.lines)
+    cut_row = int(source.row_lines[-1]) if ends_inside_row(lines, source.row_lines) else -1
     by_frame: dict[int, list[int]] = {}
     for f, m in zip(frames.tolist(), markers.tolist()):
         by_frame.setdefault(f, []).append(m)
@@ -379,6 +461,7 @@ def patched_lines(source: TextSource, motion: Motion,
         index = int(source.row_lines[f])
         body, ending = split_ending(lines[index])
         cells = split_cells(body, source.delimiter)
+        cut_cell = len(cells) - 1
         for m in marker_list:
             if erased[f, m]:
                 for axis in range(3):
@@ -391,6 +474,18 @@ def patched_lines(source: TextSource, motion: Motion,
                 w = int(source.w_columns[m])
                 if w >= len(cells) or cell_text(cells[w]).lower() in MISSING_TOKENS:
                     _set_cell(cells, w, "1")
+        if index == cut_row:
+            # The file ends inside this row, so a reader sets its last cell aside (it may
+            # be cut short): blank the cut text unless a fill replaced it (a homogeneous
+            # ``1`` cannot be cut), and end the row with an empty cell, so that the output
+            # reads back as written.
+            kept = {int(c) for m in marker_list if filled[f, m] for c in source.columns[m]}
+            if source.w_columns is not None:
+                kept.update(source.w_columns.tolist())
+            if cut_cell not in kept:
+                cells[cut_cell] = ""
+            if cells[-1].strip():
+                cells.append("")
         lines[index] = source.delimiter.join(cells) + ending
     return lines
 

@@ -22,7 +22,12 @@ with the bone name (so a BVH converted from the same ASF has the point of ``lfem
 at the joint *below* it, ``LeftLeg``).
 
 AMC files declare no frame count: a bone line absent from a frame, or a ``nan`` value, is a
-gap, not an error. A bone line with the wrong number of values is an error.
+gap, not an error. A bone line with the wrong number of values is an error, except in the
+line a file ends inside: a file that does not end with a line ending may have been cut
+short anywhere in its last line, inside a number too (``-17.3198`` cut to ``-17.3``). The
+last value of that line is then read as missing (unless whitespace follows it), values
+absent from it are missing, and a frame number or bone name it holds alone starts no
+frame and is not read.
 
 Units: the ASF's ``:units length`` is a divisor of the file's lengths; by the CMU
 convention the unit before that division is the inch. By default positions stay in file
@@ -34,7 +39,9 @@ the files; CMU captured at 120 Hz (option ``rate=``).
 Writing patches the AMC the Motion was read from: every line is echoed byte for byte
 except the cells whose observed state changed (filled: a number with 6 significant digits,
 like the CMU files; made missing: ``nan``). A filled cell whose bone line was absent from
-its frame gets a new line at the end of that frame.
+its frame gets a new line at the end of that frame. When the last frame changes and the
+file ended inside one of its bone lines, that line is written whole (its unread values
+as ``nan`` unless filled) with a line ending, so the output reads back as written.
 """
 from __future__ import annotations
 
@@ -313,6 +320,8 @@ class AmcSource:
         Degrees per AMC angle unit (1 under ``:DEGREES``, else 180/pi).
     scale
         Factor from file lengths to ``Motion.positions``.
+    cut_line
+        Index of the bone line the file ends inside (values possibly cut short), or -1.
     """
 
     lines: tuple[str, ...]
@@ -324,26 +333,37 @@ class AmcSource:
     state: ChannelState
     angle_factor: float
     scale: float = 1.0
+    cut_line: int = -1
 
 
 def _parse_amc(path: Path, lines: tuple[str, ...], skeleton: Skeleton,
-               line_columns: list[tuple[int, ...]]) -> tuple[np.ndarray, np.ndarray,
-                                                               list[int], list[int], bool]:
-    """Channel values, line index of each (frame, point), frame numbers and ends."""
+               line_columns: list[tuple[int, ...]]
+               ) -> tuple[np.ndarray, np.ndarray, list[int], list[int], bool, int]:
+    """Channel values, line index of each (frame, point), frame numbers and ends, whether
+    angles are degrees, and the bone line the file ends inside (-1 if none)."""
     point_of = {name: j for j, name in enumerate(skeleton.names)}
     rows: list[np.ndarray] = []
     point_lines: list[np.ndarray] = []
     numbers: list[int] = []
     ends: list[int] = []
     in_degrees = False
+    cut_line = -1
     for i, line in enumerate(lines):
-        tokens = line.split("#", 1)[0].split()
+        text = line.split("#", 1)[0]
+        tokens = text.split()
         if not tokens:
             continue
+        # The file ends inside this line (no line ending, no comment the cut fell in):
+        # it may be cut short anywhere, its last token too unless whitespace follows it.
+        ends_inside = (i == len(lines) - 1 and not line.endswith(("\n", "\r"))
+                       and "#" not in line)
+        last_cut = ends_inside and not text[-1].isspace()
         if tokens[0].startswith(":"):
             in_degrees |= tokens[0].upper() == ":DEGREES"
             continue
         if len(tokens) == 1 and tokens[0].isdigit():
+            if ends_inside:
+                continue
             numbers.append(int(tokens[0]))
             rows.append(np.full(skeleton.n_channels, np.nan))
             point_lines.append(np.full(skeleton.n_joints, -1))
@@ -353,24 +373,30 @@ def _parse_amc(path: Path, lines: tuple[str, ...], skeleton: Skeleton,
             raise FormatError(path, f"line {i + 1}: bone values before the first frame number")
         name = tokens[0]
         if name not in point_of or not line_columns[point_of[name]]:
+            if last_cut and len(tokens) == 1:   # a bone name cut short
+                continue
             what = "not in the ASF" if name not in point_of else "has no dof in the ASF"
             raise FormatError(path, f"line {i + 1}: bone {name!r} {what}")
         columns = line_columns[point_of[name]]
-        if len(tokens) - 1 != len(columns):
-            raise FormatError(path, f"line {i + 1}: {name} has {len(tokens) - 1} values, "
+        n_values = len(tokens) - 1
+        if n_values > len(columns) or (n_values < len(columns) and not ends_inside):
+            raise FormatError(path, f"line {i + 1}: {name} has {n_values} values, "
                                     f"its dof lists {len(columns)}")
+        read = tokens[1:n_values] if last_cut else tokens[1:]
         try:
-            rows[-1][list(columns)] = [float(t) for t in tokens[1:]]
+            rows[-1][list(columns[:len(read)])] = [float(t) for t in read]
         except ValueError:
             raise FormatError(path, f"line {i + 1}: non-numeric value for {name}") from None
         point_lines[-1][point_of[name]] = i
         ends[-1] = i
+        if ends_inside:
+            cut_line = i
     if not rows:
         raise FormatError(path, "no frames (no line holding a frame number)")
     values = np.array(rows)
     if np.isinf(values).any():
         raise FormatError(path, "infinite value in the motion")
-    return values, np.array(point_lines), numbers, ends, in_degrees
+    return values, np.array(point_lines), numbers, ends, in_degrees, cut_line
 
 
 def _units(asf: _Asf, units: str | None) -> tuple[float, str]:
@@ -414,12 +440,13 @@ def read(path: Path, *, asf: Path | str | None = None, rate: float = 120.0,
         raise FormatError(asf_path, f"bad ASF: {exc}") from None
     scale, label = _units(skeleton_file, units)
     lines = tuple(path.read_bytes().decode("latin-1").splitlines(keepends=True))
-    values, point_lines, numbers, ends, in_degrees = _parse_amc(path, lines, skeleton,
-                                                                line_columns)
+    values, point_lines, numbers, ends, in_degrees, cut_line = _parse_amc(
+        path, lines, skeleton, line_columns)
     angle_factor = 1.0 if in_degrees else 180.0 / np.pi
     values[:, skeleton.rotation_channel] *= angle_factor
     source = AmcSource(lines, asf_path, tuple(channel_names), tuple(line_columns), point_lines,
-                       tuple(ends), ChannelState.as_read(skeleton, values), angle_factor, scale)
+                       tuple(ends), ChannelState.as_read(skeleton, values), angle_factor, scale,
+                       cut_line)
     positions, observed = source.state.points()
     return Motion(positions * scale, observed, skeleton.names, rate, label, source=source,
                   path=path, first_frame=numbers[0])
@@ -467,6 +494,20 @@ def _cell_text(source: AmcSource, frame: int, column: int) -> str:
     return f"{value:.6g}"
 
 
+def _whole_line(source: AmcSource, frame: int, point: int, changed: np.ndarray) -> str:
+    """The bone line the file ended inside, written whole with a line ending: the values
+    read from it as they were, every other value as the channel matrix now holds it."""
+    line = source.lines[source.cut_line]
+    tokens = line.split()
+    texts = [tokens[k + 1] if source.state.observed[frame, c] and not changed[frame, c]
+             else _cell_text(source, frame, c)
+             for k, c in enumerate(source.line_columns[point])]
+    before = source.lines[source.cut_line - 1] if source.cut_line else ""
+    ending = before[len(before.rstrip("\r\n")):] or "\n"
+    indent = line[:len(line) - len(line.lstrip())]
+    return indent + " ".join([tokens[0], *texts]) + ending
+
+
 def write(motion: Motion, path: Path, **_options) -> None:
     """Write a repaired AMC by patching the file the Motion was read from.
 
@@ -485,6 +526,11 @@ def write(motion: Motion, path: Path, **_options) -> None:
     lines = list(source.lines)
     added: dict[int, list[str]] = {}
     changed = source.state.changed_cells()
+    last = len(source.frame_ends) - 1
+    if source.cut_line >= 0 and changed[last].any():
+        point = int(np.flatnonzero(source.point_lines[last] == source.cut_line)[0])
+        lines[source.cut_line] = _whole_line(source, last, point, changed)
+        changed[last, list(source.line_columns[point])] = False     # written just now
     for frame in np.flatnonzero(changed.any(axis=1)):
         for point, columns in enumerate(source.line_columns):
             touched = [k for k, c in enumerate(columns) if changed[frame, c]]

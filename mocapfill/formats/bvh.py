@@ -17,6 +17,9 @@ Reading
     * A file with fewer complete frame lines than ``Frames:`` declares (a truncated file) or
       more is rejected with a FormatError giving both counts: a patching writer must not
       echo a damaged file, and the user should know the clip is incomplete.
+    * A ``Frame Time`` that is not a positive, finite number of seconds (``inf``, ``0``,
+      ``nan``) is rejected too. ``Frames: 0`` reads as a clip of no frames (``info`` can
+      report it); :func:`mocapfill.formats.write` refuses to write a clip of no frames.
 
 The Motion
     Points are the joints in file order, each followed by its End Site, at their FK world
@@ -223,11 +226,13 @@ def _read_source(path: Path, scale: float) -> tuple[BvhSource, float]:
         raise FormatError(path, "MOTION section lacks 'Frames:' and 'Frame Time:'")
     try:
         declared = int(_header_value(lines[rest[0]], "frames"))
-        frame_time = float(_header_value(lines[rest[1]], "frame time"))
+        frame_time_text = _header_value(lines[rest[1]], "frame time")
+        frame_time = float(frame_time_text)
     except ValueError as exc:
         raise FormatError(path, f"bad MOTION header: {exc}") from None
-    if not frame_time > 0:
-        raise FormatError(path, f"Frame Time must be positive, got {frame_time}")
+    if not (np.isfinite(frame_time) and frame_time > 0 and np.isfinite(1.0 / frame_time)):
+        raise FormatError(path, f"Frame Time is {frame_time_text!r}, not a frame time (a "
+                                "positive, finite number of seconds)")
     frame_lines = rest[2:]
     n_channels = len(tree.channel_names)
     rows = [lines[i].split() for i in frame_lines]

@@ -27,13 +27,23 @@ Kinetics Toolkit export (``ktk.TimeSeries`` written with pandas)
     sample is filled and its fourth cell is missing it is written as ``1``.
 
 Missing data: a sample is missing when any of its three cells is empty, ``NaN`` (any
-case), ``NA``, ``N/A`` or absent (a short row).
+case), ``NA`` or ``N/A``.
+
+Rows: every data row holds as many cells as the header row (the axis row in a Vicon
+export, the first row in a headerless file); a row with fewer cells, or with values
+beyond them, is a FormatError naming its line. Empty cells beyond them are accepted (a
+trailing delimiter, spreadsheet padding). A file that does not end with a line ending
+may have been cut short anywhere in its last row, inside a number too (``956.933`` cut
+to ``956``): the last cell of that row is not read, the row may be short, and the
+samples of its absent or unread cells are missing; the source handle's notes say so.
 
 Rate, first in this order: the ``# rate:`` comment; the Vicon rate line; the ``Time``
 column (median step, or the mean step when all steps agree within rounding); the
-``rate=`` option; 120 Hz. Units: the ``# units:`` comment; the Vicon units row; the
-``units=`` option; ``"mm"`` (``"m"`` for Kinetics Toolkit files, which are in SI units).
-Options only fill in what the file does not state.
+``rate=`` option; 120 Hz. A rate the file states (``120`` or ``120 Hz``) must be a
+positive, finite number (``inf``, ``0``, ``-120``, ``nan`` or ``abc`` is a FormatError).
+Units: the ``# units:`` comment; the Vicon units row; the ``units=`` option; ``"mm"``
+(``"m"`` for Kinetics Toolkit files, which are in SI units). Options only fill in what the
+file does not state.
 
 Writing: a Motion read from a CSV file (its ``source`` is this module's handle, and it
 still has the file's frames and labels) is written as a patched copy of that file: only
@@ -42,7 +52,11 @@ printed with the largest number of decimals that column's observed cells use (th
 own precision; ``decimals=`` overrides), so read-back values agree with the Motion to that
 precision. Any other Motion is written as a new plain CSV:
 ``# units: mm, rate: 120`` then ``Frame,Time,NAME_X,NAME_Y,NAME_Z,...``, empty cells for
-missing samples, coordinates as the shortest text that reads back exactly.
+missing samples, coordinates as the shortest text that reads back exactly; a clip without
+a rate (0 Hz, a C3D with no ``POINT:RATE``) is written at 120 Hz, and a clip without
+markers is refused. A patched file that ended inside its last row still does; if that
+row is patched, its unread last cell is blanked (unless filled) and the row ends with an
+empty cell, so the output reads back as written.
 """
 from __future__ import annotations
 
@@ -55,11 +69,15 @@ import numpy as np
 from ..errors import FormatError
 from ..motion import Motion
 from ._text import (
+    CUT_ROW_NOTE,
+    RowWidth,
     TextSource,
     cell_text,
+    ends_inside_row,
     first_frame_from,
     format_float,
     format_time,
+    frame_rate,
     is_blank,
     parse_column,
     parse_markers,
@@ -71,6 +89,7 @@ from ._text import (
     sniff_delimiter,
     split_cells,
     split_ending,
+    writable_rate,
     write_lines,
 )
 
@@ -153,10 +172,17 @@ def write(motion: Motion, path: Path, *, decimals: int | None = None,
         (patch) or writes the shortest exact text (new file).
     **_ignored
         Options meant for other formats.
+
+    Raises
+    ------
+    FormatError
+        The clip has no markers (a CSV without marker columns cannot be read back).
     """
     source = motion.source
     if isinstance(source, TextSource) and source.kind in KINDS and source.fits(motion):
         write_lines(path, patched_lines(source, motion, decimals))
+    elif motion.n_markers == 0:
+        raise FormatError(path, "the clip has no markers; a CSV file needs at least one")
     else:
         write_lines(path, new_file_lines(motion, decimals))
 
@@ -169,9 +195,9 @@ def new_file_lines(motion: Motion, decimals: int | None = None) -> list[str]:
     names = [_clean_label(label, j) for j, label in enumerate(motion.labels)]
     header = ["Frame", "Time"] + [quote(f"{name}_{axis}", ",")
                                   for name in names for axis in "XYZ"]
-    lines = [f"# units: {motion.units}, rate: {format_float(motion.rate)}\n",
+    rate = writable_rate(motion.rate, DEFAULT_RATE)
+    lines = [f"# units: {motion.units}, rate: {format_float(rate)}\n",
              ",".join(header) + "\n"]
-    rate = motion.rate if motion.rate > 0 else DEFAULT_RATE
     for f in range(motion.n_frames):
         cells = [str(motion.first_frame + f), format_time(f / rate)]
         for m in range(motion.n_markers):
@@ -228,18 +254,20 @@ def _read_plain(path: Path, lines: list[str], start: int, delimiter: str,
     def column_name(marker: int, axis: int) -> str:
         return headers[columns[marker, axis]]
 
+    width = RowWidth(_filled_width(headers), "the header row has")
     positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
-                                        column_name)
+                                        column_name, width)
     frames = (parse_column(path, lines, row_lines, frame_col, delimiter, headers[frame_col])
               if frame_col >= 0 else np.array([]))
     times = (parse_column(path, lines, row_lines, time_col, delimiter, headers[time_col])
              if time_col >= 0 else np.array([]))
-    notes = (f"ignored columns: {', '.join(ignored)}",) if ignored else ()
+    notes = ((f"ignored columns: {', '.join(ignored)}",) if ignored else ()) \
+        + _cut_note(lines, row_lines)
     w_columns = (np.array([w_cols.get(n, -1) for n in labels], dtype=int) if ktk else None)
     source = TextSource("ktk" if ktk else "csv", tuple(lines), delimiter, row_lines,
                         columns, observed, labels, w_columns=w_columns, notes=notes)
     return Motion(positions, observed, labels,
-                  _rate(comments, rate_from_times(times), rate),
+                  _rate(path, comments, rate_from_times(times), rate),
                   comments.get("units") or units or ("m" if ktk else DEFAULT_UNITS),
                   source=source, path=path, first_frame=first_frame_from(frames))
 
@@ -282,23 +310,22 @@ def _read_vicon(path: Path, lines: list[str], delimiter: str, rate: float | None
     def column_name(marker: int, axis: int) -> str:
         return f"{labels[marker]}_{'XYZ'[axis]}"
 
+    width = RowWidth(_filled_width(axes_row), "the axis row has")
     positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
-                                        column_name)
+                                        column_name, width)
     frames = parse_column(path, lines, row_lines, 0, delimiter, "Frame")
     unit_set = {units_row[c] for c in columns.reshape(-1)
                 if c < len(units_row) and units_row[c]}
     if len(unit_set) > 1:
         raise FormatError(path, f"Vicon trajectories in mixed units: {sorted(unit_set)}")
-    try:
-        file_rate = float(head[1][0])
-    except (ValueError, IndexError):
-        file_rate = None
+    stated = head[1][0] if head[1] else ""
+    file_rate = frame_rate(path, stated, "Trajectories rate") if stated else None
     others = [name for key, (_, name) in sections.items() if key != "trajectories"]
-    notes = (f"sections not read: {', '.join(others)}",) if others else ()
+    notes = ((f"sections not read: {', '.join(others)}",) if others else ()) \
+        + _cut_note(lines, row_lines)
     source = TextSource("vicon", tuple(lines), delimiter, row_lines, columns, observed,
                         labels, notes=notes)
-    return Motion(positions, observed, labels,
-                  file_rate if file_rate and file_rate > 0 else (rate or DEFAULT_RATE),
+    return Motion(positions, observed, labels, file_rate or rate or DEFAULT_RATE,
                   unit_set.pop() if unit_set else (units or DEFAULT_UNITS),
                   source=source, path=path, first_frame=first_frame_from(frames))
 
@@ -318,12 +345,16 @@ def _read_headerless(path: Path, lines: list[str], start: int, delimiter: str,
     def column_name(marker: int, axis: int) -> str:
         return f"{columns[marker, axis] + 1} ({labels[marker]}_{'XYZ'[axis]})"
 
+    width = RowWidth(n_cols, "the first row has")
     positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
-                                        column_name)
+                                        column_name, width)
     leading = [parse_column(path, lines, row_lines, c, delimiter, str(c + 1))
                for c in range(lead)]
+    cut = ends_inside_row(lines, row_lines)
     for values in leading:
-        if not (np.all(np.isfinite(values)) and np.all(np.diff(values) > 0)):
+        # a counter cut short in the row the file ends inside reads as missing
+        counted = values[:-1] if cut and np.isnan(values[-1]) else values
+        if not (np.all(np.isfinite(counted)) and np.all(np.diff(counted) > 0)):
             raise FormatError(path, f"headerless CSV has {n_cols} columns, not a multiple "
                                     f"of 3, and its first {lead} column(s) are not an "
                                     "increasing frame/time counter")
@@ -334,9 +365,9 @@ def _read_headerless(path: Path, lines: list[str], start: int, delimiter: str,
         whole = np.all(np.mod(leading[0], 1) == 0)
         frames, times = (leading[0], times) if whole else (frames, leading[0])
     source = TextSource("headerless", tuple(lines), delimiter, row_lines, columns,
-                        observed, labels)
+                        observed, labels, notes=_cut_note(lines, row_lines))
     return Motion(positions, observed, labels,
-                  _rate(comments, rate_from_times(times), rate),
+                  _rate(path, comments, rate_from_times(times), rate),
                   comments.get("units") or units or DEFAULT_UNITS,
                   source=source, path=path, first_frame=first_frame_from(frames))
 
@@ -352,16 +383,25 @@ def _comment_items(body: str) -> dict[str, str]:
     return {k.lower(): v.strip() for k, v in _COMMENT_ITEM.findall(body.lstrip("#"))}
 
 
-def _rate(comments: dict[str, str], from_times: float | None,
+def _rate(path: Path, comments: dict[str, str], from_times: float | None,
           option: float | None) -> float:
-    try:
-        stated = float(comments.get("rate", ""))
-    except ValueError:
-        stated = None
-    for candidate in (stated, from_times, option):
+    if "rate" in comments:
+        stated = re.sub(r"\s*hz$", "", comments["rate"], flags=re.IGNORECASE)   # "120 Hz"
+        return frame_rate(path, stated, "the rate in the '#' comment line")
+    for candidate in (from_times, option):
         if candidate is not None and candidate > 0:
             return float(candidate)
     return DEFAULT_RATE
+
+
+def _filled_width(headers: list[str]) -> int:
+    """Cells up to the last non-empty header cell (a trailing delimiter adds an empty one)."""
+    filled = [c for c, name in enumerate(headers) if name]
+    return filled[-1] + 1 if filled else len(headers)
+
+
+def _cut_note(lines: Sequence[str], row_lines: np.ndarray) -> tuple[str, ...]:
+    return (CUT_ROW_NOTE,) if ends_inside_row(lines, row_lines) else ()
 
 
 def _all_numeric(cells: list[str]) -> bool:

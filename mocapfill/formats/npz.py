@@ -1,5 +1,8 @@
 """NumPy ``.npz``: arrays ``positions`` (frames, markers, 3), ``observed``, ``labels``,
-``rate``, ``units``. Missing samples are stored as NaN and as False in ``observed``."""
+``rate``, ``units``. Missing samples are stored as NaN and as False in ``observed``.
+
+``rate`` 0 means "not known", as for a C3D without ``POINT:RATE``; a negative or
+non-finite rate is a FormatError."""
 from __future__ import annotations
 
 import zipfile
@@ -26,6 +29,9 @@ def read(path: Path, **_options) -> Motion:
         raise FormatError(path, f"missing array {exc}") from None
     if positions.ndim != 3 or positions.shape[2] != 3:
         raise FormatError(path, f"positions must be (frames, markers, 3), got {positions.shape}")
+    if not (np.isfinite(rate) and rate >= 0):
+        raise FormatError(path, f"rate is {rate}, not a frame rate (a positive, finite number "
+                                "of Hz, or 0 when not known)")
     if labels is None:
         labels = [f"M{j + 1:03d}" for j in range(positions.shape[1])]
     return Motion(positions, observed, tuple(labels), rate, units, path=path)

@@ -17,15 +17,28 @@ Reading is tolerant, because real files disagree with their own headers:
 - the ``X1 Y1 Z1`` line and the blank line are optional; key and value lines are matched
   on their non-empty cells when padding makes their cell counts differ;
 - the marker names line and the rows are trusted over ``NumMarkers`` and ``NumFrames``:
-  marker k takes cells 3k+2 .. 3k+4 of each row (as BTK and OpenSim read them), cells
-  beyond the named markers are ignored, and a file with fewer rows than ``NumFrames``
-  (a truncated copy) gives the rows it holds. Each disagreement is described in the
-  source handle's ``notes``; ``declared_frames`` and ``truncated_rows_read`` let a
-  caller report "93 of 652 declared frames read";
-- a sample is missing when any of its cells is empty, ``NaN`` (any case) or absent
-  (short row). When the file ends inside its last row (no final line ending and fewer
-  cells than the header implies) the last cell of that row may be cut and is read as
-  missing.
+  marker k takes cells 3k+2 .. 3k+4 of each row (as BTK and OpenSim read them), x, y, z
+  triplets beyond the named markers (unnamed markers, as Motion Analysis Cortex writes
+  them) are ignored, and a file with fewer rows than ``NumFrames`` (a truncated copy)
+  gives the rows it holds. Each disagreement is described in the source handle's
+  ``notes``; ``declared_frames`` and ``truncated_rows_read`` let a caller report "93 of
+  652 declared frames read";
+- a sample is missing when any of its cells is empty or ``NaN`` (any case).
+
+Strict where leniency would misread the file:
+
+- every row holds the ``Frame#`` and ``Time`` cells and three per named marker; a row
+  with fewer cells, or with cells beyond them that are neither empty (a trailing tab,
+  as OpenSim writes after every cell) nor whole x, y, z triplets, is a FormatError
+  naming its line;
+- a file that does not end with a line ending may have been cut short anywhere in its
+  last row, inside a number too (``956.933`` cut to ``956``): the last cell of that row
+  is not read, the row may be short, and the samples of its absent or unread cells are
+  missing; the notes say so. A patched copy of such a file still ends inside that row;
+  if the row is patched, its unread last cell is blanked (unless filled) and the row
+  ends with an empty cell, so the output reads back as written;
+- a marker name given twice in the ``Frame#`` line, and a ``DataRate`` that is not a
+  positive, finite number (``inf``, ``0``, ``nan``), are FormatErrors.
 
 Rate: ``DataRate``, else the ``Time`` column, else the ``rate=`` option, else 120 Hz.
 Units: ``Units``, else the ``units=`` option, else mm. ``first_frame``: the first
@@ -39,12 +52,15 @@ OpenSim's ``TRCFileAdapter`` writes: tab-delimited, ``PathFileType\\t4\\t(X/Y/Z)
 the 8 header keys and their values, each marker name followed by three tabs, ``X1 Y1 Z1``
 ... numbered from 1, a blank line, then rows whose cells are each followed by a tab;
 ``Frame#`` counts from ``first_frame`` (= ``OrigDataStartFrame``), time from 0, missing
-samples are empty cells, coordinates the shortest text that reads back exactly.
+samples are empty cells, coordinates the shortest text that reads back exactly. A clip
+without a rate (0 Hz, a C3D with no ``POINT:RATE``) is written at 120 Hz; a clip without
+markers is refused.
 
 Marker names in a new file have the characters OpenSim rejects in component names
 (whitespace, ``\\``, ``/``, ``*``, ``+``) replaced by ``_``: a TRC is written for OpenSim,
 and a name it rejects makes the whole file unusable there, whereas the renamed marker
-is still recognisable. A patched file keeps its names as they are.
+is still recognisable; names that two labels become alike get ``_2``, ``_3`` ... A
+patched file keeps its names as they are.
 """
 from __future__ import annotations
 
@@ -57,18 +73,24 @@ import numpy as np
 from ..errors import FormatError
 from ..motion import Motion
 from ._text import (
+    CUT_ROW_NOTE,
+    RowWidth,
     TextSource,
     cell_text,
+    ends_inside_row,
     first_frame_from,
     format_float,
     format_time,
+    frame_rate,
     parse_column,
     parse_markers,
     patched_lines,
     rate_from_times,
     read_lines,
+    row_cells,
     split_cells,
     split_ending,
+    writable_rate,
     write_lines,
 )
 
@@ -132,6 +154,9 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
                    if name)
     if not labels:
         raise FormatError(path, "TRC file names no markers")
+    twice = next((name for k, name in enumerate(labels) if name in labels[:k]), None)
+    if twice is not None:
+        raise FormatError(path, f"marker name {twice!r} appears twice in the Frame# line")
     start = names_at + 1
     if start < len(lines) and _is_axis_line(_body(lines, start), delimiter):
         start += 1
@@ -142,28 +167,29 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
 
     n_markers = len(labels)
     columns = 2 + np.arange(3 * n_markers, dtype=int).reshape(n_markers, 3)
-    last_body, last_ending = split_ending(lines[row_lines[-1]])
-    last_short = len(split_cells(last_body, delimiter)) < 2 + 3 * n_markers
-    cut = last_short and not last_ending and row_lines[-1] == len(lines) - 1
+    width = RowWidth(2 + 3 * n_markers, f"Frame#, Time and {n_markers} named markers take",
+                     triplets=True)
+    cut = ends_inside_row(lines, row_lines)
+    last_short = cut and len(row_cells(lines, row_lines[-1], delimiter)[0]) < width.cells
 
     def column_name(marker: int, axis: int) -> str:
         return f"{'XYZ'[axis]}{marker + 1} ({labels[marker]})"
 
     positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
-                                        column_name, last_cell_suspect=cut)
+                                        column_name, width)
     frames = parse_column(path, lines, row_lines, 0, delimiter, "Frame#")
     times = parse_column(path, lines, row_lines, 1, delimiter, "Time")
 
     declared_frames = _int(header.get("NumFrames"))
     notes = _notes(lines, row_lines, delimiter, header, n_markers, declared_frames,
-                   last_short)
+                   cut, last_short)
     truncated = (len(row_lines) if declared_frames is not None
                  and len(row_lines) < declared_frames else None)
     source = TextSource("trc", tuple(lines), delimiter, row_lines, columns, observed,
                         labels, declared_frames=declared_frames,
                         truncated_rows_read=truncated, notes=tuple(notes))
-    data_rate = _float(header.get("DataRate"))
-    file_rate = data_rate if data_rate and data_rate > 0 else rate_from_times(times)
+    stated = header.get("DataRate")
+    file_rate = frame_rate(path, stated, "DataRate") if stated else rate_from_times(times)
     start_frame = _int(header.get("OrigDataStartFrame"))
     return Motion(positions, observed, labels, file_rate or rate or DEFAULT_RATE,
                   header.get("Units") or units or DEFAULT_UNITS, source=source, path=path,
@@ -187,10 +213,17 @@ def write(motion: Motion, path: Path, *, decimals: int | None = None,
         (patch) or writes the shortest exact text (new file).
     **_ignored
         Options meant for other formats.
+
+    Raises
+    ------
+    FormatError
+        The clip has no markers (a TRC naming none cannot be read back).
     """
     source = motion.source
     if isinstance(source, TextSource) and source.kind == "trc" and source.fits(motion):
         write_lines(path, patched_lines(source, motion, decimals))
+    elif motion.n_markers == 0:
+        raise FormatError(path, "the clip has no markers; a TRC file needs at least one")
     else:
         write_lines(path, new_file_lines(motion, _target_name(Path(path)), decimals))
 
@@ -200,15 +233,15 @@ def new_file_lines(motion: Motion, name: str, decimals: int | None = None) -> li
     def number(value: float) -> str:
         return format_float(value) if decimals is None else f"{value:.{decimals}f}"
 
-    rate = motion.rate if motion.rate > 0 else DEFAULT_RATE
+    rate = writable_rate(motion.rate, DEFAULT_RATE)
     n_frames, n_markers = motion.n_frames, motion.n_markers
     values = (format_float(rate), format_float(rate), str(n_frames), str(n_markers),
               motion.units, format_float(rate), str(motion.first_frame), str(n_frames))
     lines = [f"PathFileType\t4\t(X/Y/Z)\t{name}\n",
              "\t".join(HEADER_KEYS) + "\n",
              "\t".join(values) + "\n",
-             "Frame#\tTime\t" + "".join(f"{opensim_name(label, j)}\t\t\t"
-                                        for j, label in enumerate(motion.labels)) + "\n",
+             "Frame#\tTime\t" + "".join(f"{name}\t\t\t"
+                                        for name in opensim_names(motion.labels)) + "\n",
              "\t\t" + "".join(f"X{k}\tY{k}\tZ{k}\t" for k in range(1, n_markers + 1)) + "\n",
              "\n"]
     for f in range(n_frames):
@@ -226,6 +259,23 @@ def opensim_name(label: str, index: int) -> str:
     """``label`` with the characters OpenSim rejects replaced by ``_`` (``M001`` if empty)."""
     name = _OPENSIM_REJECTS.sub("_", str(label).strip())
     return name or f"M{index + 1:03d}"
+
+
+def opensim_names(labels: Sequence[str]) -> list[str]:
+    """:func:`opensim_name` of each label, made unique: a name that two labels become
+    (``R ASI`` and ``R_ASI``) gets ``_2``, ``_3`` ... on its repeats, as the C3D reader
+    does for repeated labels (a TRC naming a marker twice is not read)."""
+    names: list[str] = []
+    taken: set[str] = set()
+    for j, label in enumerate(labels):
+        base = name = opensim_name(label, j)
+        copy = 1
+        while name in taken:
+            copy += 1
+            name = f"{base}_{copy}"
+        taken.add(name)
+        names.append(name)
+    return names
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -261,7 +311,7 @@ def _is_axis_line(body: str, delimiter: str) -> bool:
 
 def _notes(lines: Sequence[str], row_lines: np.ndarray, delimiter: str,
            header: dict[str, str], n_markers: int, declared_frames: int | None,
-           last_short: bool) -> list[str]:
+           cut: bool, last_short: bool) -> list[str]:
     notes = []
     declared_markers = _int(header.get("NumMarkers"))
     if declared_markers is not None and declared_markers != n_markers:
@@ -279,6 +329,8 @@ def _notes(lines: Sequence[str], row_lines: np.ndarray, delimiter: str,
     if overlong:
         notes.append(f"{overlong} rows hold values beyond the {n_markers} named markers' "
                      "columns; ignored")
+    if cut:
+        notes.append(CUT_ROW_NOTE)
     if last_short:
         notes.append("the last row is shorter than the header implies; its absent cells "
                      "read as missing")

@@ -12,6 +12,7 @@ from mocapfill.formats import acclaim, bvh
 from mocapfill.motion import from_matrix
 from tests.conftest import shared_file
 from tests.formats.test_bvh import fill_by_interpolation
+from tests.formats.test_csv import assert_every_cut_reads_as_a_prefix
 from tests.test_skeleton import rot
 
 # Keywords deliberately out of the usual order, a comment, commas, wrapped limits, a bone
@@ -208,6 +209,38 @@ def test_a_bone_unknown_to_the_asf_is_a_format_error(tmp_path):
         acclaim.read(amc)
 
 
+def cut(amc: Path, n_bytes: int) -> Path:
+    """Drop the last ``n_bytes`` of a file, as an interrupted copy does."""
+    amc.write_bytes(amc.read_bytes()[:-n_bytes])
+    return amc
+
+
+def test_an_amc_cut_inside_its_last_number_reads_that_value_as_missing(tmp_path):
+    amc = cut(write_pair(tmp_path, [frame(1), frame(2, hand="10 25")]), 2)  # "hand 10 2"
+    values, observed = acclaim.channels(acclaim.read(amc))
+    assert observed[1].tolist() == [True] * 8 + [False] and values[1, 7] == 10
+
+
+def test_an_amc_cut_inside_its_last_line_reads_absent_values_as_missing(tmp_path):
+    amc = cut(write_pair(tmp_path, [frame(1), frame(2, hand="10 25")]), 5)  # "hand 1"
+    _, observed = acclaim.channels(acclaim.read(amc))
+    assert observed[1].tolist() == [True] * 7 + [False, False]
+
+
+def test_every_cut_of_an_amc_reads_as_a_prefix_of_its_values_or_fails(tmp_path):
+    amc = write_pair(tmp_path, [frame(1, "1.5 2.25 3 4 5 6", "10.5", "20.25 30.125"),
+                                frame(2, "7 8 9 10 11 12", "nan", "-40.5 50.75")])
+    assert_every_cut_reads_as_a_prefix(amc, acclaim.channels)
+
+
+@pytest.mark.parametrize("tail", ["3", "han"])
+def test_an_amc_cut_inside_a_frame_number_or_bone_name_reads_the_frames_before(tmp_path,
+                                                                                tail):
+    amc = write_pair(tmp_path, [frame(1), frame(2), tail])
+    motion = acclaim.read(amc)
+    assert motion.n_frames == 2 and motion.observed.all()
+
+
 # ----------------------------------------------------------------------- finding the ASF
 
 def test_asf_with_the_same_stem_is_preferred(tmp_path):
@@ -269,6 +302,17 @@ def test_filled_bone_absent_from_its_frame_gets_a_line_at_the_frames_end(tmp_pat
     acclaim.write(acclaim.with_channels(motion, fill_by_interpolation(values, observed),
                                         np.ones_like(observed)), out)
     assert out.read_text() == amc.read_text().replace("arm 0\n3\n", "arm 0\nhand 0 0\n3\n")
+
+
+def test_filling_the_line_an_amc_ends_inside_writes_that_line_whole(tmp_path):
+    amc = cut(write_pair(tmp_path, [frame(1, hand="10 20"), frame(2, hand="10 25")]), 2)
+    motion = acclaim.read(amc)
+    values, observed = acclaim.channels(motion)
+    out = tmp_path / "out.amc"
+    acclaim.write(acclaim.with_channels(motion, fill_by_interpolation(values, observed),
+                                        np.ones_like(observed)), out)
+    assert out.read_text() == amc.read_text().removesuffix("hand 10 2") + "hand 10 20\n"
+    assert acclaim.read(out).observed.all()
 
 
 def test_radian_amc_is_written_back_in_radians(tmp_path):

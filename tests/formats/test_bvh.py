@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mocapfill import formats
 from mocapfill.errors import FormatError
 from mocapfill.formats import bvh
 from mocapfill.motion import from_matrix
@@ -131,6 +132,27 @@ def test_fewer_frame_lines_than_declared_is_reported_as_truncated(tmp_path):
     expected = r"chain\.bvh: truncated: 3 complete frames read, 5 declared$"
     with pytest.raises(FormatError, match=expected):
         bvh.read(path)
+
+
+@pytest.mark.parametrize("frame_time", ["inf", "1e-320"])
+def test_a_frame_time_that_is_not_a_positive_finite_number_is_a_format_error(tmp_path,
+                                                                              frame_time):
+    path = write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0"])
+    path.write_text(path.read_text().replace("Frame Time: 0.01", f"Frame Time: {frame_time}"))
+    with pytest.raises(FormatError) as caught:
+        bvh.read(path)
+    assert str(caught.value) == (f"{path}: Frame Time is {frame_time!r}, not a frame time "
+                                 "(a positive, finite number of seconds)")
+
+
+def test_a_bvh_of_no_frames_reads_but_is_not_written(tmp_path):
+    motion = bvh.read(write_bvh(tmp_path, []))
+    assert motion.n_frames == 0
+    out = tmp_path / "out.bvh"
+    with pytest.raises(FormatError) as caught:
+        formats.write(motion, out)
+    assert str(caught.value) == f"{out}: refusing to write a clip with no frames"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["chain.bvh"]
 
 
 def test_real_file_cut_mid_motion_names_the_file_and_the_frame_counts(tmp_path):

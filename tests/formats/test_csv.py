@@ -86,6 +86,36 @@ def assert_patch_invariant(original: Motion, repaired: Motion, out: Path) -> Non
             assert error <= printed_resolution(text) + 8 * np.spacing(abs(value)), text
 
 
+def assert_every_cut_reads_as_a_prefix(path: Path, samples=None) -> None:
+    """Each copy of ``path`` cut short at any byte (an interrupted copy or download) is
+    refused with a FormatError or reads as a prefix of the file's frames whose observed
+    samples hold the file's values: a number cut short is never read as data.
+
+    ``samples(motion)`` gives the (frames, ...) values and observed mask compared
+    (positions by default). A cut that changes the labels (a headerless file cut inside its
+    first row) is a different, valid file and is not compared.
+    """
+    samples = samples or (lambda motion: (motion.positions, motion.observed))
+    whole = formats.read(path)
+    values, observed = samples(whole)
+    cut = path.with_name(f"{path.stem}_cut{path.suffix}")
+    data = path.read_bytes()
+    for size in range(1, len(data)):
+        cut.write_bytes(data[:size])
+        try:
+            motion = formats.read(cut)
+        except FormatError:
+            continue
+        if motion.labels != whole.labels:
+            continue
+        cut_values, cut_observed = samples(motion)
+        n = len(cut_observed)
+        assert n <= len(observed), size
+        assert not (cut_observed & ~observed[:n]).any(), (size, data[size - 20:size])
+        np.testing.assert_array_equal(cut_values[cut_observed], values[:n][cut_observed],
+                                      err_msg=repr(data[size - 20:size]))
+
+
 def patch_round_trip(path: Path, tmp_path: Path) -> tuple[Motion, Motion, Path]:
     original = formats.read(path)
     repaired = fill_by_interp(original)
@@ -164,11 +194,6 @@ def test_missing_tokens_make_the_sample_missing(tmp_path, token):
 def test_one_missing_cell_makes_the_whole_sample_missing(tmp_path):
     motion = csvfmt.read(write_text(tmp_path, "A_X,A_Y,A_Z\n1,,3\n"))
     assert not motion.observed[0, 0]
-
-
-def test_short_row_reads_absent_cells_as_missing(tmp_path):
-    motion = csvfmt.read(write_text(tmp_path, "A_X,A_Y,A_Z,B_X,B_Y,B_Z\n1,2,3\n"))
-    assert motion.observed.tolist() == [[True, False]]
 
 
 @pytest.mark.parametrize("delimiter", [";", "\t"])
@@ -455,6 +480,128 @@ def test_ktk_patch_writes_the_homogeneous_coordinate(tmp_path):
     csvfmt.write(repaired, out)
     assert_patch_invariant(original, repaired, out)
     assert out.read_bytes().split(b"\r\n")[2] == b"0.02,0.2,0.3,0.4,1,1.2,1.3,1.4,1"
+
+
+# ----------------------------------------------------------------------------- damaged files
+
+# Layout -> (a file of two complete rows of markers A and B, ending in B's z = 6.75; how a
+# row-length error names what sets the length).
+DAMAGE = {
+    "plain": ("A_X,A_Y,A_Z,B_X,B_Y,B_Z\n1,2,3,4,5,6\n1.5,2.5,3.5,4.5,5.5,6.75\n",
+              "the header row has 6"),
+    "headerless": ("1,2,3,4,5,6\n1.5,2.5,3.5,4.5,5.5,6.75\n", "the first row has 6"),
+    "vicon": ("Trajectories\n100\n,,S:A,,,S:B,,\nFrame,Sub Frame,X,Y,Z,X,Y,Z\n"
+              ",,mm,mm,mm,mm,mm,mm\n1,0,1,2,3,4,5,6\n2,0,1.5,2.5,3.5,4.5,5.5,6.75\n",
+              "the axis row has 8"),
+}
+
+
+@pytest.mark.parametrize("layout", DAMAGE)
+def test_a_file_cut_inside_its_last_number_reads_that_sample_as_missing(tmp_path, layout):
+    text = DAMAGE[layout][0].removesuffix(".75\n")           # 6.75 cut to 6
+    motion = csvfmt.read(write_text(tmp_path, text))
+    assert motion.observed.tolist() == [[True, True], [True, False]]
+    np.testing.assert_array_equal(motion.positions[1, 0], [1.5, 2.5, 3.5])
+    assert any("ends inside its last row" in note for note in motion.source.notes)
+
+
+@pytest.mark.parametrize("text", [PLAIN, "1.5,2.25,3.125\n,,\n-1.75,20.5,300.25\n", VICON],
+                         ids=["plain", "headerless", "vicon"])
+def test_every_cut_of_a_file_reads_as_a_prefix_of_its_samples_or_fails(tmp_path, text):
+    assert_every_cut_reads_as_a_prefix(write_text(tmp_path, text))
+
+
+@pytest.mark.parametrize("layout", DAMAGE)
+def test_a_short_row_is_a_format_error_naming_the_file_and_line(tmp_path, layout):
+    text, width = DAMAGE[layout]
+    lines = text.splitlines(keepends=True)
+    lines[-1] = ",".join(lines[-1].split(",")[:4]) + "\n"
+    path = write_text(tmp_path, "".join(lines))
+    with pytest.raises(FormatError) as info:
+        csvfmt.read(path)
+    assert str(info.value) == f"{path}: line {len(lines)} holds 4 cells; {width}"
+
+
+@pytest.mark.parametrize("layout", DAMAGE)
+def test_a_row_with_a_value_beyond_the_header_is_a_format_error(tmp_path, layout):
+    text, width = DAMAGE[layout]
+    path = write_text(tmp_path, text.removesuffix("\n") + ",7\n")
+    n_cells = int(width.split()[-1]) + 1
+    with pytest.raises(FormatError) as info:
+        csvfmt.read(path)
+    assert str(info.value) == (f"{path}: line {len(text.splitlines())} holds {n_cells} "
+                               f"cells; {width}")
+
+
+@pytest.mark.parametrize("text", ["A_X,A_Y,A_Z\n1,2,3,\n4,5,6,\n",
+                                  "A_X,A_Y,A_Z,\n1,2,3\n4,5,6,\n",
+                                  "A_X;A_Y;A_Z\n1;2;3;;\n4;5;6\n"])
+def test_empty_cells_beyond_the_header_are_accepted(tmp_path, text):
+    # A guard: trailing delimiters and spreadsheet padding are not ragged rows.
+    motion = csvfmt.read(write_text(tmp_path, text))
+    assert motion.observed.tolist() == [[True], [True]]
+
+
+def test_comment_rate_may_carry_its_unit(tmp_path):
+    path = write_text(tmp_path, "# units: mm, rate: 100 Hz\nA_X,A_Y,A_Z\n1,2,3\n")
+    assert csvfmt.read(path).rate == 100
+
+
+@pytest.mark.parametrize("stated", ["inf", "0", "-120", "nan", "abc"])
+def test_a_comment_rate_that_is_not_a_positive_finite_number_is_a_format_error(tmp_path,
+                                                                                stated):
+    path = write_text(tmp_path, f"# units: mm, rate: {stated}\nA_X,A_Y,A_Z\n1,2,3\n")
+    with pytest.raises(FormatError) as info:
+        csvfmt.read(path, rate=100)
+    assert str(info.value).startswith(f"{path}: ") and repr(stated) in str(info.value)
+
+
+@pytest.mark.parametrize("stated", ["inf", "0", "-100"])
+def test_a_vicon_rate_that_is_not_a_positive_finite_number_is_a_format_error(tmp_path,
+                                                                              stated):
+    path = write_text(tmp_path, VICON.replace("\r\n100,", f"\r\n{stated},", 1))
+    with pytest.raises(FormatError) as info:
+        csvfmt.read(path)
+    assert str(info.value).startswith(f"{path}: ") and repr(stated) in str(info.value)
+
+
+def test_patch_of_the_row_a_file_ends_inside_reads_back_as_written(tmp_path):
+    head = "A_X,A_Y,A_Z,B_X,B_Y,B_Z\n1,2,3,4,5,6\n"
+    path = write_text(tmp_path, head + "1,2,3,,,\n1,2,3,5,6,7")
+    original = csvfmt.read(path)
+    repaired = fill_by_interp(original)                 # B held at 4, 5, 6 to the end
+    out = tmp_path / "out.csv"
+    csvfmt.write(repaired, out)
+    assert_patch_invariant(original, repaired, out)
+    assert out.read_text() == head + "1,2,3,4,5,6\n1,2,3,4,5,6,"    # still no final ending
+
+
+def test_patch_of_the_row_a_file_ends_inside_blanks_its_unread_last_cell(tmp_path):
+    path = write_text(tmp_path, "A_X,A_Y,A_Z,B_X,B_Y,B_Z\n1,2,3,4,5,6\n,,,5,6,7")
+    original = csvfmt.read(path)
+    positions, observed = original.positions.copy(), original.observed.copy()
+    positions[1, 0], observed[1, 0] = [1, 2, 3], True   # fill A only; B stays missing
+    repaired = original.with_positions(positions, observed)
+    out = tmp_path / "out.csv"
+    csvfmt.write(repaired, out)
+    assert out.read_text().endswith("\n1,2,3,5,6,")
+    assert csvfmt.read(out).observed.tolist() == [[True, True], [True, False]]
+
+
+def test_a_clip_without_rate_is_written_at_the_rate_of_its_time_column(tmp_path):
+    motion = Motion(np.ones((2, 1, 3)), np.ones((2, 1), bool), ("A",), 0.0)  # C3D, no RATE
+    out = tmp_path / "out.csv"
+    csvfmt.write(motion, out)
+    assert out.read_text().splitlines()[0] == "# units: mm, rate: 120"
+    assert csvfmt.read(out).rate == 120
+
+
+def test_a_clip_without_markers_is_not_written(tmp_path):
+    out = tmp_path / "out.csv"
+    with pytest.raises(FormatError) as info:
+        formats.write(Motion(np.zeros((3, 0, 3)), np.zeros((3, 0), bool), (), 100.0), out)
+    assert str(info.value).startswith(f"{out}: ") and "no markers" in str(info.value)
+    assert list(tmp_path.iterdir()) == []
 
 
 # ----------------------------------------------------------------------------- real files

@@ -11,7 +11,12 @@ from mocapfill.errors import FormatError
 from mocapfill.formats import trc
 from mocapfill.motion import Motion
 from tests.conftest import shared_file, shared_files
-from tests.formats.test_csv import fill_by_interp, patch_round_trip, write_text
+from tests.formats.test_csv import (
+    assert_every_cut_reads_as_a_prefix,
+    fill_by_interp,
+    patch_round_trip,
+    write_text,
+)
 
 KEYS = "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame" \
        "\tOrigNumFrames"
@@ -117,6 +122,54 @@ def test_values_beyond_the_named_markers_are_ignored_and_noted(tmp_path):
     assert any("1 rows hold values beyond" in note for note in motion.source.notes)
 
 
+def test_file_cut_inside_its_last_number_reads_that_sample_as_missing(tmp_path):
+    rows = ROWS[:2] + ["3\t0.02\t1.700\t2.700\t3.700\t11.000\t21.000\t31"]   # 31.000 cut
+    motion = trc.read(write_text(tmp_path, trc_text(rows).removesuffix("\n"), "a.trc"))
+    assert motion.observed[2].tolist() == [True, False]
+    assert any("ends inside its last row" in note for note in motion.source.notes)
+
+
+def test_every_cut_of_a_file_reads_as_a_prefix_of_its_samples_or_fails(tmp_path):
+    assert_every_cut_reads_as_a_prefix(write_text(tmp_path, trc_text(ROWS), "a.trc"))
+
+
+def test_a_short_row_is_a_format_error_naming_the_file_and_line(tmp_path):
+    rows = [ROWS[0], "2\t0.01\t1.600\t2.600\t3.600", ROWS[2]]
+    path = write_text(tmp_path, trc_text(rows), "a.trc")
+    with pytest.raises(FormatError) as info:
+        trc.read(path)
+    assert str(info.value) == (f"{path}: line 8 holds 5 cells; Frame#, Time and 2 named "
+                               "markers take 8")
+
+
+def test_values_beyond_the_named_markers_that_are_not_whole_triplets_are_an_error(tmp_path):
+    rows = [ROWS[0] + "\t7\t8", ROWS[1], ROWS[2]]
+    path = write_text(tmp_path, trc_text(rows), "a.trc")
+    with pytest.raises(FormatError) as info:
+        trc.read(path)
+    assert str(info.value) == (f"{path}: line 7 holds 10 cells; Frame#, Time and 2 named "
+                               "markers take 8 (cells beyond those must be whole x, y, z "
+                               "triplets)")
+
+
+@pytest.mark.parametrize("stated", ["inf", "0", "-100", "nan", "abc"])
+def test_a_data_rate_that_is_not_a_positive_finite_number_is_a_format_error(tmp_path,
+                                                                             stated):
+    text = trc_text(ROWS).replace("\n100\t100\t", f"\n{stated}\t100\t", 1)
+    path = write_text(tmp_path, text, "a.trc")
+    with pytest.raises(FormatError) as info:
+        trc.read(path)
+    assert str(info.value) == (f"{path}: DataRate is {stated!r}, not a frame rate (a "
+                               "positive, finite number of Hz)")
+
+
+def test_a_marker_named_twice_is_a_format_error(tmp_path):
+    path = write_text(tmp_path, trc_text(ROWS, names="R.TETE\t\t\tR.TETE\t\t\t"), "a.trc")
+    with pytest.raises(FormatError) as info:
+        trc.read(path)
+    assert str(info.value) == f"{path}: marker name 'R.TETE' appears twice in the Frame# line"
+
+
 def test_file_not_starting_with_path_file_type_is_a_format_error(tmp_path):
     with pytest.raises(FormatError, match="not a TRC file"):
         trc.read(write_text(tmp_path, "Frame#\tTime\n1\t0\n", "a.trc"))
@@ -148,12 +201,15 @@ def test_patch_changes_only_filled_cells(tmp_path):
     assert out.read_bytes() == expected
 
 
-def test_patch_pads_a_short_row(tmp_path):
-    rows = [ROWS[0], "2\t0.01\t1.600\t2.600\t3.600", ROWS[2]]
-    original = trc.read(write_text(tmp_path, trc_text(rows), "a.trc"))
+def test_patch_pads_the_short_row_a_file_ends_inside(tmp_path):
+    rows = [ROWS[0], ROWS[2].replace("3\t0.02", "2\t0.01"), "3\t0.02\t1.800\t2.800\t3.800\t"]
+    original = trc.read(write_text(tmp_path, trc_text(rows).removesuffix("\n"), "a.trc"))
+    assert original.observed[2].tolist() == [True, False]
     out = tmp_path / "out.trc"
-    trc.write(fill_by_interp(original), out)
-    assert out.read_text().splitlines()[7] == "2\t0.01\t1.600\t2.600\t3.600\t10.500\t20.500\t30.500"
+    trc.write(fill_by_interp(original), out)       # R ASI held at 11, 21, 31
+    last = "3\t0.02\t1.800\t2.800\t3.800\t11.000\t21.000\t31.000\t"    # no line ending still
+    assert out.read_text().endswith("\n" + last)
+    assert trc.read(out).observed.all()
 
 
 def opensim_motion() -> Motion:
@@ -195,6 +251,21 @@ def test_motion_from_another_format_is_written_as_a_new_file(tmp_path):
 
 
 # ----------------------------------------------------------------------------- real files
+
+def test_new_file_makes_names_that_opensim_renaming_makes_alike_unique(tmp_path):
+    motion = opensim_motion().replace(labels=("R ASI", "R_ASI"))
+    out = tmp_path / "out.trc"
+    trc.write(motion, out)
+    assert trc.read(out).labels == ("R_ASI", "R_ASI_2")
+
+
+def test_a_clip_without_markers_is_not_written(tmp_path):
+    out = tmp_path / "out.trc"
+    with pytest.raises(FormatError) as info:
+        formats.write(Motion(np.zeros((3, 0, 3)), np.zeros((3, 0), bool), (), 100.0), out)
+    assert str(info.value).startswith(f"{out}: ") and "no markers" in str(info.value)
+    assert list(tmp_path.iterdir()) == []
+
 
 def test_btk_gait_trusts_the_names_line_over_num_markers(tmp_path):
     original, repaired, _ = patch_round_trip(shared_file("trc/btk-Gait.trc"), tmp_path)
