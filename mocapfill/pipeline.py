@@ -337,12 +337,12 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
         one outcome per gap of the input.
     """
     options = options or RepairOptions()
+    if motion.n_frames < 2:     # in either space: nothing to interpolate or fit from
+        raise NothingToRepair(f"{_named(motion)}a clip of {motion.n_frames} frame(s) cannot be "
+                              "repaired")
     if options.space == "channels":
         return repair_channels(motion, options)
     started = time.perf_counter()
-    if motion.n_frames < 2:
-        raise NothingToRepair(f"{_named(motion)}a clip of {motion.n_frames} frame(s) cannot be "
-                              "repaired")
     if not (motion.observed[:, motion.fillable]).any():
         raise NothingToRepair(f"{_named(motion)}no marker has a single observed sample; "
                               "nothing to fill from")

@@ -243,3 +243,22 @@ def test_ctrl_c_during_a_solve_leaves_without_finalising_under_the_solver_thread
         release.set()
     assert result.exit_code == 130 and exits == [130]
     assert "interrupted" in result.stderr and not (clip_files / "o.npz").exists()
+
+
+def test_a_one_frame_skeleton_clip_is_refused_in_channel_space_too(tmp_path):
+    from .formats.test_bvh import write_bvh
+
+    path = write_bvh(tmp_path, ["0 0 0 0 0 0 10 20 30"])
+    for out in ("o.bvh", "o.trc"):      # channel space (same format), then positions
+        result = run("repair", path, tmp_path / out)
+        assert result.exit_code == 123, out
+        assert "a clip of 1 frame(s) cannot be repaired" in result.stderr
+        assert not (tmp_path / out).exists()
+
+
+def test_an_output_that_cannot_be_written_is_named_not_its_temporary(clip_files):
+    (clip_files / "folder.npz").mkdir()
+    result = run("repair", clip_files / "gapped.npz", clip_files / "folder.npz")
+    assert result.exit_code == 123
+    assert "folder.npz: " in result.stderr and ".tmp" not in result.stderr
+    assert not [p for p in clip_files.iterdir() if p.name.startswith(".")]

@@ -118,7 +118,11 @@ def write(motion: Motion, path: str | os.PathLike, **options) -> None:
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
         raise FormatError(path, f"output folder {directory} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    except OSError as exc:      # a read-only or full folder: name the output, not the temp
+        raise FormatError(path, f"cannot write in {directory}: {exc.strerror or exc}") \
+            from None
     os.close(fd)
     try:
         module.write(motion, Path(tmp), **options)
@@ -130,6 +134,11 @@ def write(motion: Motion, path: str | os.PathLike, **options) -> None:
         if exc.path == tmp:  # the module only saw the temporary name
             raise FormatError(path, exc.problem, exit_code=exc.exit_code) from None
         raise
+    except OSError as exc:
+        _discard(tmp)
+        # The error names the temporary file (".out.c3d.x1y2.tmp: Is a directory"); the
+        # user knows the output's name.
+        raise FormatError(path, exc.strerror or str(exc)) from None
     except BaseException:
         _discard(tmp)
         raise

@@ -290,7 +290,8 @@ def find_asf(amc: Path) -> Path:
         return next(iter(asfs.values()))
     found = f"{len(asfs)} .asf files" if asfs else "no .asf file"
     raise FormatError(amc, f"cannot find its skeleton: tried {' and '.join(dict.fromkeys(tried))}"
-                           f" in {folder}, which holds {found}; pass asf=")
+                           f" in {folder}, which holds {found}; put the skeleton beside it, "
+                           f"named {amc.stem}.asf")
 
 
 # --------------------------------------------------------------------------- AMC
