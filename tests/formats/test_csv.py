@@ -596,8 +596,10 @@ def test_a_clip_without_rate_is_written_at_the_rate_of_its_time_column(tmp_path)
     assert csvfmt.read(out).rate == 120
 
 
-def test_a_clip_without_markers_is_not_written(tmp_path):
-    out = tmp_path / "out.csv"
+@pytest.mark.parametrize("suffix", [".csv", ".trc"])
+def test_a_clip_without_markers_is_not_written(tmp_path, suffix):
+    # Neither text format can hold one: the file would be rejected when read back.
+    out = tmp_path / f"out{suffix}"
     with pytest.raises(FormatError) as info:
         formats.write(Motion(np.zeros((3, 0, 3)), np.zeros((3, 0), bool), (), 100.0), out)
     assert str(info.value).startswith(f"{out}: ") and "no markers" in str(info.value)

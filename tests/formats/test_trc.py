@@ -259,12 +259,6 @@ def test_new_file_makes_names_that_opensim_renaming_makes_alike_unique(tmp_path)
     assert trc.read(out).labels == ("R_ASI", "R_ASI_2")
 
 
-def test_a_clip_without_markers_is_not_written(tmp_path):
-    out = tmp_path / "out.trc"
-    with pytest.raises(FormatError) as info:
-        formats.write(Motion(np.zeros((3, 0, 3)), np.zeros((3, 0), bool), (), 100.0), out)
-    assert str(info.value).startswith(f"{out}: ") and "no markers" in str(info.value)
-    assert list(tmp_path.iterdir()) == []
 
 
 def test_btk_gait_trusts_the_names_line_over_num_markers(tmp_path):

@@ -192,13 +192,18 @@ def _textbook_trnn(D, observed, *, rank, lam, mu, rho, eta0, iterations):
     return X, S
 
 
+def _noisy_low_rank(seed, m, n, r, *, noise, missing):
+    """A rank-r (m, n) matrix plus Gaussian noise, and a mask missing that share."""
+    rng = np.random.default_rng(seed)
+    D = rng.normal(size=(m, r)) @ rng.normal(size=(r, n)) + noise * rng.normal(size=(m, n))
+    return D, rng.random((m, n)) > missing
+
+
 def test_iteration_equals_the_textbook_updates():
     # The in-place loop (buffers, Cholesky inverses, Y₂ rewritten as η·P_Ω(clip)) must be
     # the same algorithm as the plain transcription of MODEL.md, step for step.
-    rng = np.random.default_rng(6)
-    m, n, r = 12, 50, 3
-    D = rng.normal(size=(m, r)) @ rng.normal(size=(r, n)) + 0.01 * rng.normal(size=(m, n))
-    observed = rng.random((m, n)) > 0.25
+    r = 3
+    D, observed = _noisy_low_rank(6, 12, 50, r, noise=0.01, missing=0.25)
     kwargs = dict(rank=r, lam=0.3, mu=5.0, rho=1.3, eta0=0.5)
     X_ref, S_ref = _textbook_trnn(D, observed, iterations=8, **kwargs)
     result = trnn(D, observed, max_iter=8, tol=0.0, **kwargs)
@@ -211,10 +216,8 @@ def test_iteration_stops_at_the_first_iterate_meeting_both_criteria():
     # The loop judges the constraint residual only once the change of X is small enough;
     # it must still stop exactly where the textbook iteration first meets both. Here the
     # change criterion is met three iterations before the residual one.
-    rng = np.random.default_rng(7)
-    m, n, r = 10, 40, 2
-    D = rng.normal(size=(m, r)) @ rng.normal(size=(r, n)) + 0.05 * rng.normal(size=(m, n))
-    observed = rng.random((m, n)) > 0.2
+    r = 2
+    D, observed = _noisy_low_rank(7, 10, 40, r, noise=0.05, missing=0.2)
     kwargs = dict(rank=r, lam=1.0, mu=5.0, rho=1.02, eta0=1.0)
     tol = 3e-3
     result = trnn(D, observed, tol=tol, max_iter=200, **kwargs)
