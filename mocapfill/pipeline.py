@@ -235,10 +235,10 @@ def _complete_clip(motion: Motion, matrix: np.ndarray, observed: np.ndarray,
                    options: RepairOptions) -> np.ndarray:
     """:func:`complete_matrix` with the options; a solver failure names the clip's file."""
     rank = options.solver_options.get("rank")
-    if rank is not None and rank > min(matrix.shape[0], min(matrix.shape[1], WINDOW_FRAMES)):
+    limit = min(matrix.shape[0], matrix.shape[1], WINDOW_FRAMES)   # rows, frames per solve
+    if rank is not None and rank > limit:
         raise ParameterError(f"{_named(motion)}--rank {rank} is larger than this clip allows "
-                             f"({min(matrix.shape[0], matrix.shape[1])}: the smaller of 3 × "
-                             "markers with data and frames)")
+                             f"({limit}: the smaller of 3 × markers with data and frames)")
     try:
         return complete_matrix(matrix, observed, options.method, rate=motion.rate,
                                overwrite=True, **options.solver_options)
