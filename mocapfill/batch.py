@@ -334,8 +334,12 @@ def plan(paths: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None =
 
 def _write_in_place(motion, path: Path) -> None:
     """Replace ``path`` atomically: write a sibling temp file with the same suffix (through
-    ``formats.write``, itself atomic), keep the input's permissions, rename it over."""
+    ``formats.write``, itself atomic), keep the input's permissions, rename it over. A
+    symbolic link is followed: its target is replaced and the link kept (renaming over the
+    link would have replaced it by a plain file and left the target unrepaired)."""
     from . import formats
+
+    path = Path(os.path.realpath(path))
 
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".inplace{path.suffix}",
                                dir=path.parent)

@@ -136,7 +136,7 @@ def _parse_max_gap(text: str | None, rate: float) -> int | None:
             frames = float(raw[:-1]) * rate
         else:
             frames = float(raw)
-            if frames != int(frames):
+            if math.isfinite(frames) and frames != int(frames):
                 raise ValueError
     except ValueError:
         raise ParameterError(f"--max-gap must be frames (40) or seconds (0.5s), got {text!r}") \

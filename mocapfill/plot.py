@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import FormatError, ParameterError
+from .errors import FormatError, MocapfillError, ParameterError
 from .gaps import missing_runs
 from .motion import Motion
 
@@ -62,6 +62,10 @@ def plot(original: Motion, repaired: Motion | None, path: Path,
     suffix = path.suffix.lower()
     if suffix not in SUFFIXES:
         raise FormatError(path, f"plot output must be one of {', '.join(SUFFIXES)}", exit_code=2)
+    if original.n_markers == 0 or original.n_frames == 0:
+        name = f"{original.path}: " if original.path is not None else ""
+        raise MocapfillError(f"{name}nothing to draw: the clip has {original.n_markers} "
+                             f"markers and {original.n_frames} frames")
     if repaired is not None and repaired.positions.shape != original.positions.shape:
         raise ParameterError("the repaired clip does not match the original in frames × markers")
     try:

@@ -165,6 +165,19 @@ def test_refuses_to_write_outputs_over_inputs_without_in_place(clean_tree):
     assert files["gapped0"].read_bytes() == before
 
 
+def test_in_place_repairs_the_target_of_a_symbolic_link_and_keeps_the_link(tmp_path):
+    target = tmp_path / "target.npz"
+    formats.write(with_gap(smooth_clip(200, 6), 2, 50, 80), target)
+    (tmp_path / "links").mkdir()
+    link = tmp_path / "links" / "clip.npz"
+    link.symlink_to(target)
+    result = run(tmp_path / "links", "--in-place", "-j", "1", "--max-jump", "0", *LINEAR)
+    assert result.exit_code == 0, result.output
+    assert link.is_symlink() and link.resolve() == target
+    assert formats.read(target).observed.all()
+    assert not [p for p in tmp_path.rglob(".*")]
+
+
 def test_in_place_repairs_inputs_atomically_and_leaves_complete_files_untouched(clean_tree):
     root, files = clean_tree
     untouched = files["complete"].stat().st_mtime_ns

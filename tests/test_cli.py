@@ -8,6 +8,7 @@ from click.testing import CliRunner
 
 from mocapfill import formats
 from mocapfill.cli import main
+from mocapfill.motion import Motion
 
 from .helpers import smooth_clip, with_gap
 
@@ -97,6 +98,9 @@ def test_check_exits_1_when_gaps_are_left(clip_files):
      "gapped.npz: --rank 31 is larger than this clip allows (30"),
     (["repair", "gapped.npz", "o.npz", "--mu", "nan"], 2, "--mu must be finite"),
     (["repair", "gapped.npz", "o.npz", "--max-gap", "infs"], 2, "--max-gap must be a finite"),
+    (["repair", "gapped.npz", "o.npz", "--max-gap", "inf"], 2, "--max-gap must be a finite"),
+    (["repair", "gapped.npz", "./gapped.npz"], 2, "refusing to overwrite the input file"),
+    (["plot", "empty.npz", "-o", "p.png"], 123, "empty.npz: nothing to draw"),
     (["repair", "gapped.npz", "o.npz", "--method", "bogus"], 2,
      "Invalid value for '--method'"),
     (["repair", "gapped.npz", "o.npz", "--gaps-report", "nodir/g.csv"], 2,
@@ -109,6 +113,8 @@ def test_bad_input_gives_one_line_error_and_exit_code(clip_files, monkeypatch, a
     monkeypatch.chdir(clip_files)
     (clip_files / "broken.npz").write_bytes(b"not a zip file at all")
     formats.write(smooth_clip(1, 3), clip_files / "one.npz")
+    formats.write(Motion(np.zeros((5, 0, 3)), np.zeros((5, 0), bool), (), 100.0),
+                  clip_files / "empty.npz")
     result = run(*args)
     assert result.exit_code == code
     assert words in result.stderr

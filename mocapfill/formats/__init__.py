@@ -112,7 +112,7 @@ def write(motion: Motion, path: str | os.PathLike, **options) -> None:
     path = Path(path)
     module = format_module(path)
     if motion.path is not None and path.exists() and path.resolve() == motion.path.resolve():
-        raise FormatError(path, "refusing to overwrite the input file")
+        raise FormatError(path, "refusing to overwrite the input file", exit_code=2)
     if motion.n_frames == 0:
         raise FormatError(path, "refusing to write a clip with no frames")
     directory = path.parent if str(path.parent) else Path(".")
