@@ -400,6 +400,8 @@ def repair_file(job: FileJob) -> FileRecord:
     from . import formats
     from .pipeline import repair
 
+    if _TERMINATING:        # a stopped worker's pool handed it the next file: none is started
+        os._exit(128 + _TERMINATING[0])
     started = time.perf_counter()
     frames = 0
 
@@ -466,8 +468,15 @@ def _single_threaded_worker() -> None:
     signal.signal(signal.SIGTERM, _exit_on_terminate)
 
 
+_TERMINATING: list[int] = []      # the signal that stops this worker process, once sent
+
+
 def _exit_on_terminate(signum, frame) -> None:
-    # SystemExit unwinds through formats.write, which deletes its temporary file.
+    # SystemExit unwinds through formats.write, which deletes its temporary file. The
+    # pool's worker loop catches it as the job's exception and would go on to the next
+    # queued file (which was then written after Ctrl-C, unreported): repair_file exits
+    # before starting another.
+    _TERMINATING.append(signum)
     raise SystemExit(128 + signum)
 
 

@@ -253,3 +253,28 @@ def test_ctrl_c_exits_130(clean_tree, tmp_path, monkeypatch):
     assert result.exit_code == 130
     assert "interrupted" in result.stderr
     assert _report(tmp_path / "r.json")["summary"]["files"] == 0
+
+
+def test_a_worker_stopped_by_the_pool_starts_no_further_file(tmp_path, monkeypatch):
+    # The pool's worker loop catches the SystemExit that SIGTERM raises in a job and goes
+    # on to the next queued file: after Ctrl-C that file was repaired, written (3 s after
+    # the signal, for 85_12) and left out of the report.
+    import signal
+
+    source = tmp_path / "in.npz"
+    formats.write(with_gap(smooth_clip(200, 6), 2, 50, 80), source)
+    job = batch.FileJob(source, tmp_path / "out" / "in.npz", RepairOptions(method="linear"))
+    exits = []
+
+    def fake_exit(code):
+        exits.append(code)
+        raise SystemExit(code)
+
+    monkeypatch.setattr(os, "_exit", fake_exit)
+    monkeypatch.setattr(batch, "_TERMINATING", [])     # this process's flag, restored after
+    with pytest.raises(SystemExit):
+        batch._exit_on_terminate(signal.SIGTERM, None)
+    with pytest.raises(SystemExit):
+        batch.repair_file(job)
+    assert exits == [128 + signal.SIGTERM]
+    assert not (tmp_path / "out").exists()
