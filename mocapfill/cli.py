@@ -268,6 +268,10 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
     if gaps_report is not None:
         _check_gaps_report(gaps_report, in_path, out_path)
     motion = _read(in_path, zero_is_missing)
+    from .report import reader_notes
+
+    for note in reader_notes(motion):     # e.g. a cut last row: the user should know
+        click.echo(f"mocapfill: note: {in_path}: {note}", err=True)
     # A BVH/AMC written back to its own format is completed in joint-channel space.
     space = "channels" if formats.same_skeleton_format(in_path, out_path) else "positions"
     result = run_repair(motion, options(_parse_max_gap(max_gap, motion.rate), space))

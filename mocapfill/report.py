@@ -13,6 +13,12 @@ from .gaps import summarise
 from .motion import Motion
 
 
+def reader_notes(motion: Motion) -> tuple[str, ...]:
+    """What the reader noticed and worked around (a file ending inside its last row,
+    ignored columns or sections): text formats keep these on their source handle."""
+    return tuple(getattr(motion.source, "notes", None) or ())
+
+
 def info_dict(motion: Motion) -> dict:
     """The per-marker table of ``mocapfill info --json``."""
     rows = summarise(motion)
@@ -20,6 +26,7 @@ def info_dict(motion: Motion) -> dict:
         "file": None if motion.path is None else str(motion.path),
         "frames": motion.n_frames, "markers": motion.n_markers, "rate_hz": motion.rate,
         "units": motion.units,
+        "notes": list(reader_notes(motion)),
         "missing_samples": int((~motion.observed).sum()),
         "per_marker": [{"marker": r.label, "missing": r.missing, "frames": r.frames,
                         "percent": round(r.percent, 3), "gaps": r.gaps,
@@ -42,6 +49,7 @@ def format_info(motion: Motion, gaps_only: bool = False) -> str:
              f"at {motion.rate:g} Hz ({motion.duration_s:.2f} s), units {motion.units}; "
              f"{total}/{motion.observed.size} samples missing "
              f"({100 * total / max(motion.observed.size, 1):.1f}%)",
+             *(f"note: {note}" for note in reader_notes(motion)),
              f"{'marker':<{width}}  {'missing':>16}  {'gaps':>4}  {'longest':>15}"]
     for row, fillable in zip(rows, motion.fillable):
         if gaps_only and not row.missing:

@@ -268,3 +268,18 @@ def test_an_output_that_cannot_be_written_is_named_not_its_temporary(clip_files)
     assert result.exit_code == 123
     assert "folder.npz: " in result.stderr and ".tmp" not in result.stderr
     assert not [p for p in clip_files.iterdir() if p.name.startswith(".")]
+
+
+def test_info_and_repair_tell_the_user_what_the_reader_worked_around(clip_files):
+    # A file that ends inside its last row (an interrupted copy) loses that row's last
+    # cell; the reader's note must reach the user, not only the source handle.
+    formats.write(formats.read(clip_files / "gapped.npz"), clip_files / "full.csv")
+    text = (clip_files / "full.csv").read_text()
+    (clip_files / "cut.csv").write_text(text.rstrip("\n")[:-2])
+    info = run("info", clip_files / "cut.csv")
+    assert "note: the file ends inside its last row" in info.stdout
+    assert json.loads(run("info", clip_files / "cut.csv", "--json").stdout)["notes"]
+    assert json.loads(run("info", clip_files / "full.csv", "--json").stdout)["notes"] == []
+    repaired = run("repair", clip_files / "cut.csv", clip_files / "o.csv")
+    assert repaired.exit_code == 0
+    assert "note: " in repaired.stderr and "cut.csv" in repaired.stderr
