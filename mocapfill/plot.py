@@ -67,7 +67,8 @@ def plot(original: Motion, repaired: Motion | None, path: Path,
         raise MocapfillError(f"{name}nothing to draw: the clip has {original.n_markers} "
                              f"markers and {original.n_frames} frames")
     if repaired is not None and repaired.positions.shape != original.positions.shape:
-        raise ParameterError("the repaired clip does not match the original in frames × markers")
+        # As score and info do: a file that does not match (exit 123), named.
+        raise FormatError(repaired.path, "does not match the original in frames × markers")
     try:
         import matplotlib
     except ImportError:

@@ -283,3 +283,14 @@ def test_info_and_repair_tell_the_user_what_the_reader_worked_around(clip_files)
     repaired = run("repair", clip_files / "cut.csv", clip_files / "o.csv")
     assert repaired.exit_code == 0
     assert "note: " in repaired.stderr and "cut.csv" in repaired.stderr
+
+
+def test_plot_info_and_score_agree_on_a_repaired_file_that_does_not_match(clip_files):
+    formats.write(smooth_clip(120, 10), clip_files / "other.npz")
+    for command in (["plot", clip_files / "gapped.npz", clip_files / "other.npz", "-o",
+                     clip_files / "p.png"],
+                    ["info", clip_files / "gapped.npz", clip_files / "other.npz"],
+                    ["score", clip_files / "truth.npz", clip_files / "other.npz"]):
+        result = run(*command)
+        assert result.exit_code == 123, command[0]
+        assert "other.npz" in result.stderr and len(result.stderr.splitlines()) == 1
