@@ -25,8 +25,6 @@ from __future__ import annotations
 
 import glob
 import os
-import shutil
-import tempfile
 import time
 from collections.abc import Callable, Iterable, Sequence
 from contextlib import contextmanager
@@ -340,18 +338,8 @@ def _write_in_place(motion, path: Path) -> None:
     from . import formats
 
     path = Path(os.path.realpath(path))
-
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".inplace{path.suffix}",
-                               dir=path.parent)
-    os.close(fd)
-    try:
+    with formats.atomic_output(path, suffix=f".inplace{path.suffix}", mode_from=path) as tmp:
         formats.write(motion, tmp)
-        shutil.copymode(path, tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _temp_patterns(output: Path) -> list[str]:

@@ -4,8 +4,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
-import tempfile
 from pathlib import Path
 
 from .errors import FormatError
@@ -114,16 +112,7 @@ def write_gaps_report(result, path: Path) -> None:
     else:
         raise FormatError(path, "gaps report must be .csv or .json", exit_code=2)
     # Atomically, like the repaired file: a failed write leaves no half-written report.
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp",
-                               dir=path.parent if str(path.parent) else ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        from .formats import _umask
+    from .formats import atomic_output
 
-        os.chmod(tmp, 0o666 & ~_umask())     # what a plain open() would give
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_output(path) as tmp:
+        Path(tmp).write_text(text, encoding="utf-8")

@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import importlib
 import os
+import shutil
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
 
@@ -118,27 +120,41 @@ def write(motion: Motion, path: str | os.PathLike, **options) -> None:
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
         raise FormatError(path, f"output folder {directory} does not exist")
+    tmp = None
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    except OSError as exc:      # a read-only or full folder: name the output, not the temp
-        raise FormatError(path, f"cannot write in {directory}: {exc.strerror or exc}") \
-            from None
-    os.close(fd)
-    try:
-        module.write(motion, Path(tmp), **options)
-        # mkstemp creates 0600; give the output the mode a plain open() would have.
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
+        with atomic_output(path) as tmp:
+            module.write(motion, Path(tmp), **options)
     except FormatError as exc:
-        _discard(tmp)
-        if exc.path == tmp:  # the module only saw the temporary name
+        if tmp is not None and exc.path == tmp:  # the module only saw the temporary name
             raise FormatError(path, exc.problem, exit_code=exc.exit_code) from None
         raise
     except OSError as exc:
-        _discard(tmp)
+        if tmp is None:         # no temporary: a read-only or full folder
+            raise FormatError(path, f"cannot write in {directory}: {exc.strerror or exc}") \
+                from None
         # The error names the temporary file (".out.c3d.x1y2.tmp: Is a directory"); the
         # user knows the output's name.
         raise FormatError(path, exc.strerror or str(exc)) from None
+
+
+@contextmanager
+def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = None):
+    """A temporary name beside ``path`` to write to; it replaces ``path`` when the block
+    ends normally and is removed when it raises, so ``path`` is never half-written.
+
+    The result gets the mode a plain ``open()`` would give (mkstemp creates 0600), or that
+    of ``mode_from``.
+    """
+    directory = path.parent if str(path.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=directory)
+    os.close(fd)
+    try:
+        yield tmp
+        if mode_from is None:
+            os.chmod(tmp, 0o666 & ~_umask())
+        else:
+            shutil.copymode(mode_from, tmp)
+        os.replace(tmp, path)
     except BaseException:
         _discard(tmp)
         raise
