@@ -402,10 +402,7 @@ def _finish_batch(report, report_path: Path | None) -> None:
 def _solver_options(**values) -> dict:
     from .errors import ParameterError
 
-    options = {k: v for k, v in values.items() if v is not None}
-    for key, value in options.items():
-        if not math.isfinite(value):
-            raise ParameterError(f"--{key.replace('_', '-')} must be finite, got {value}")
+    options = {k: v for k, v in values.items() if v is not None}   # finite: RepairOptions
     positive = ("lam", "eta0", "tol", "max_iter", "rank")
     for key in positive:
         if key in options and not options[key] > 0:

@@ -4,6 +4,11 @@ from __future__ import annotations
 from os import PathLike
 
 
+def named(path: str | PathLike | None) -> str:
+    """``"PATH: "`` to start a message about a file, ``""`` for a clip built in memory."""
+    return f"{path}: " if path is not None else ""
+
+
 class MocapfillError(Exception):
     """Base of every error mocapfill reports to a user as one line (see cli for exit codes)."""
 

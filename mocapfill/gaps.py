@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import NothingToRepair, ParameterError
+from .errors import NothingToRepair, ParameterError, named
 from .motion import Motion
 
 
@@ -110,8 +110,7 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
     observed = motion.observed.copy()
     candidates = np.flatnonzero(motion.fillable & observed.any(axis=0))
     if candidates.size == 0:
-        where = f"{motion.path}: " if motion.path is not None else ""
-        raise NothingToRepair(f"{where}no marker with observed samples to remove")
+        raise NothingToRepair(f"{named(motion.path)}no marker with observed samples to remove")
     n_frames = motion.n_frames
     if mr is not None:
         if not 0 <= mr < 1:

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import NothingToRepair, ParameterError, SolverError
+from .errors import NothingToRepair, ParameterError, SolverError, named
 from .gaps import Gap, find_gaps, missing_runs
 from .motion import Motion
 from .scaling import UnitScale
@@ -227,23 +227,19 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
     return out
 
 
-def _named(motion: Motion) -> str:
-    return f"{motion.path}: " if motion.path is not None else ""
-
-
 def _complete_clip(motion: Motion, matrix: np.ndarray, observed: np.ndarray,
                    options: RepairOptions) -> np.ndarray:
     """:func:`complete_matrix` with the options; a solver failure names the clip's file."""
     rank = options.solver_options.get("rank")
     limit = min(matrix.shape[0], matrix.shape[1], WINDOW_FRAMES)   # rows, frames per solve
     if rank is not None and rank > limit:
-        raise ParameterError(f"{_named(motion)}--rank {rank} is larger than this clip allows "
+        raise ParameterError(f"{named(motion.path)}--rank {rank} is larger than this clip allows "
                              f"({limit}: the smaller of 3 × markers with data and frames)")
     try:
         return complete_matrix(matrix, observed, options.method, rate=motion.rate,
                                overwrite=True, **options.solver_options)
     except SolverError as exc:
-        raise SolverError(f"{_named(motion)}{exc}") from None
+        raise SolverError(f"{named(motion.path)}{exc}") from None
 
 
 def _fill_ends(values: np.ndarray, observed: np.ndarray, gap: Gap, ends: str) -> None:
@@ -338,13 +334,13 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     """
     options = options or RepairOptions()
     if motion.n_frames < 2:     # in either space: nothing to interpolate or fit from
-        raise NothingToRepair(f"{_named(motion)}a clip of {motion.n_frames} frame(s) cannot be "
+        raise NothingToRepair(f"{named(motion.path)}a clip of {motion.n_frames} frame(s) cannot be "
                               "repaired")
     if options.space == "channels":
         return repair_channels(motion, options)
     started = time.perf_counter()
     if not (motion.observed[:, motion.fillable]).any():
-        raise NothingToRepair(f"{_named(motion)}no marker has a single observed sample; "
+        raise NothingToRepair(f"{named(motion.path)}no marker has a single observed sample; "
                               "nothing to fill from")
     gaps = find_gaps(motion)
     outcomes = [GapOutcome(g, _gap_status(g, motion, options), options.method) for g in gaps]
@@ -391,7 +387,7 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     # the input's values too.
     np.copyto(positions, motion.positions, where=~accepted[:, :, None])
     if not np.isfinite(positions[new_observed]).all():
-        raise SolverError(f"{_named(motion)}method {options.method!r} returned non-finite "
+        raise SolverError(f"{named(motion.path)}method {options.method!r} returned non-finite "
                           "values")
     return RepairResult(motion.with_positions(positions, new_observed), outcomes,
                         time.perf_counter() - started)

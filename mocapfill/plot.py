@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import FormatError, MocapfillError, ParameterError
+from .errors import FormatError, MocapfillError, ParameterError, named
 from .gaps import missing_runs
 from .motion import Motion
 
@@ -63,9 +63,8 @@ def plot(original: Motion, repaired: Motion | None, path: Path,
     if suffix not in SUFFIXES:
         raise FormatError(path, f"plot output must be one of {', '.join(SUFFIXES)}", exit_code=2)
     if original.n_markers == 0 or original.n_frames == 0:
-        name = f"{original.path}: " if original.path is not None else ""
-        raise MocapfillError(f"{name}nothing to draw: the clip has {original.n_markers} "
-                             f"markers and {original.n_frames} frames")
+        raise MocapfillError(f"{named(original.path)}nothing to draw: the clip has "
+                             f"{original.n_markers} markers and {original.n_frames} frames")
     if repaired is not None and repaired.positions.shape != original.positions.shape:
         # As score and info do: a file that does not match (exit 123), named.
         raise FormatError(repaired.path, "does not match the original in frames × markers")
