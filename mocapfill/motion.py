@@ -5,6 +5,7 @@ mocapfill. A marker sample is observed or missing as a whole (all three coordina
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -133,3 +134,25 @@ def from_matrix(data: np.ndarray, observed: np.ndarray | None = None, *, rate: f
     positions = data.reshape(n_markers, 3, -1).transpose(2, 0, 1)
     labels = labels or [f"M{j + 1:03d}" for j in range(n_markers)]
     return Motion(positions, observed, tuple(labels), rate, units)
+
+
+def unique_labels(names: Sequence[str]) -> list[str]:
+    """``names`` with repeats renamed LASI, LASI_2, LASI_3 ..., skipping any name already
+    in the list (readers and writers whose formats need unique marker names)."""
+    seen: set[str] = set(names)
+    unique: list[str] = []
+    counts: dict[str, int] = {}
+    for name in names:
+        if name in counts:
+            while True:
+                counts[name] += 1
+                candidate = f"{name}_{counts[name]}"
+                if candidate not in seen:
+                    break
+            seen.add(candidate)
+            unique.append(candidate)
+        else:
+            counts[name] = 1
+            unique.append(name)
+    return unique
+

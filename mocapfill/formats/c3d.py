@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError, ParameterError
-from ..motion import Motion
+from ..motion import Motion, unique_labels
 
 PROCESSORS = {84: "intel", 85: "dec", 86: "mips"}
 # Parameters listing POINT entries that are model outputs, not marker trajectories.
@@ -319,23 +319,7 @@ def _labels(point: dict[str, _Param], n_points: int) -> list[str]:
         names += _strings(point[f"LABELS{extra}"])
         extra += 1
     names = names[:n_points] + [""] * max(n_points - len(names), 0)
-    names = [name or f"POINT{i + 1}" for i, name in enumerate(names)]
-    seen: set[str] = set(names)
-    unique: list[str] = []
-    counts: dict[str, int] = {}
-    for name in names:
-        if name in counts:  # a repeat: LASI, LASI_2, LASI_3 ... skipping names already used
-            while True:
-                counts[name] += 1
-                candidate = f"{name}_{counts[name]}"
-                if candidate not in seen:
-                    break
-            seen.add(candidate)
-            unique.append(candidate)
-        else:
-            counts[name] = 1
-            unique.append(name)
-    return unique
+    return unique_labels([name or f"POINT{i + 1}" for i, name in enumerate(names)])
 
 
 def _model_outputs(point: dict[str, _Param], labels: list[str], n_points: int) -> np.ndarray:

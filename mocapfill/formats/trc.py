@@ -71,7 +71,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError
-from ..motion import Motion
+from ..motion import Motion, unique_labels
 from ._text import (
     CUT_ROW_NOTE,
     RowWidth,
@@ -262,20 +262,10 @@ def opensim_name(label: str, index: int) -> str:
 
 
 def opensim_names(labels: Sequence[str]) -> list[str]:
-    """:func:`opensim_name` of each label, made unique: a name that two labels become
-    (``R ASI`` and ``R_ASI``) gets ``_2``, ``_3`` ... on its repeats, as the C3D reader
-    does for repeated labels (a TRC naming a marker twice is not read)."""
-    names: list[str] = []
-    taken: set[str] = set()
-    for j, label in enumerate(labels):
-        base = name = opensim_name(label, j)
-        copy = 1
-        while name in taken:
-            copy += 1
-            name = f"{base}_{copy}"
-        taken.add(name)
-        names.append(name)
-    return names
+    """:func:`opensim_name` of each label, made unique as the C3D reader makes repeated
+    labels unique (``R ASI`` and ``R_ASI`` become ``R_ASI``, ``R_ASI_2``): a TRC naming a
+    marker twice is not read."""
+    return unique_labels([opensim_name(label, j) for j, label in enumerate(labels)])
 
 
 # ----------------------------------------------------------------------------- helpers
