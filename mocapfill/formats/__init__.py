@@ -125,7 +125,8 @@ def write(motion: Motion, path: str | os.PathLike, **options) -> None:
         with atomic_output(path) as tmp:
             module.write(motion, Path(tmp), **options)
     except FormatError as exc:
-        if tmp is not None and exc.path == tmp:  # the module only saw the temporary name
+        # The module saw only the temporary name, or named no file at all.
+        if exc.path is None or (tmp is not None and exc.path == tmp):
             raise FormatError(path, exc.problem, exit_code=exc.exit_code) from None
         raise
     except OSError as exc:

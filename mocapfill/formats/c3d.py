@@ -203,11 +203,34 @@ def _strings(param: _Param | None) -> list[str]:
     """Strings of a char parameter (dims: length, count), stripped of padding."""
     if param is None or param.type != -1:
         return []
-    text = param.data.decode("latin-1")
-    width = param.dims[0] if param.dims else len(text)
+    data = param.data
+    width = param.dims[0] if param.dims else len(data)
     if width == 0:
         return []
-    return [text[i:i + width].replace("\x00", " ").strip() for i in range(0, len(text), width)]
+    return [_decode(data[i:i + width]).replace("\x00", " ").strip()
+            for i in range(0, len(data), width)]
+
+
+def _decode(data: bytes) -> str:
+    """A C3D string: UTF-8 where the bytes are valid UTF-8 (plain ASCII is), else Latin-1.
+
+    The format has no declared encoding; most writers store ASCII, some Latin-1 (a lone
+    byte ≥ 0x80 is not valid UTF-8, so those read as before), and names outside Latin-1
+    can only have been stored as UTF-8 (our writer does, see :func:`_encode`).
+    """
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
+def _encode(text: str) -> bytes:
+    """A string for a C3D char parameter: Latin-1 where it fits (ASCII labels stay as
+    every reader expects), else UTF-8 — never a lossy '?' in place of a character."""
+    try:
+        return text.encode("latin-1")
+    except UnicodeEncodeError:
+        return text.encode("utf-8")
 
 
 @dataclass(frozen=True)
@@ -506,7 +529,15 @@ def _group_entry(group_id: int, name: str) -> bytes:
 def _char_param(group_id: int, name: str, strings: list[str] | str) -> bytes:
     """A char parameter: one string (1-D) or a list of strings (2-D, width x count)."""
     single = isinstance(strings, str)
-    encoded = [s.encode("latin-1", "replace")[:255] for s in ([strings] if single else strings)]
+    encoded = [_encode(s) for s in ([strings] if single else strings)]
+    too_long = next((s for s in encoded if len(s) > 255), None)
+    if too_long is not None:
+        # The dimension is one byte: a longer string would have to be cut, and cut labels
+        # can collide. Refused rather than written with other names than the clip's.
+        shown = _decode(too_long)
+        shown = shown if len(shown) <= 40 else shown[:40] + "..."
+        raise FormatError(None, f"POINT:{name} {shown!r} is {len(too_long)} bytes long; a "
+                                "C3D file holds at most 255 per entry")
     width = max((len(s) for s in encoded), default=0) or 1
     data = b"".join(s.ljust(width) for s in encoded)
     return _param_entry(group_id, name, -1, (width,) if single else (width, len(encoded)), data)

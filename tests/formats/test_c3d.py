@@ -561,3 +561,20 @@ def _timed_read(path: Path) -> float:
     motion = c3d.read(path)
     assert motion.positions.shape == (4499, 41, 3)
     return time.perf_counter() - started
+
+
+def test_new_file_keeps_labels_outside_latin1_and_refuses_labels_past_255_bytes(tmp_path):
+    from mocapfill import formats
+    from mocapfill.errors import FormatError
+
+    motion = in_memory_motion(4)
+    names = ("左膝", "右膝", "Hüfte", "LASI")        # two would both have become '??'
+    out = tmp_path / "names.c3d"
+    formats.write(Motion(motion.positions, motion.observed, names, motion.rate, motion.units),
+                  out)
+    assert c3d.read(out).labels == names
+    long_name = ("Marker" * 50,) + names[1:]
+    with pytest.raises(FormatError, match=r"long\.c3d: POINT:LABELS 'MarkerMarker.*300 bytes"):
+        formats.write(Motion(motion.positions, motion.observed, long_name, motion.rate,
+                             motion.units), tmp_path / "long.c3d")
+    assert not (tmp_path / "long.c3d").exists()
