@@ -154,14 +154,32 @@ def _gap_status(gap: Gap, motion: Motion, options: RepairOptions) -> str:
 # 12000 frames (100 s at 120 Hz) kept a 30-minute clip's peak memory under 1.5 GB.
 WINDOW_FRAMES = 12000
 WINDOW_OVERLAP = 2000
+# A method that can lend its validation between windows (``fn.windowed``, the default
+# ``trnn``) validates itself on one window in VALIDATE_EVERY (and on the last); the windows
+# between borrow the evidence of the validated windows on either side, so their candidates
+# run once instead of twice. Measured on a 44,046-frame real clip (CMU 85_12, 02_05, 85_02
+# forward and reversed, cross-faded; 5 % of samples in 20–120-frame gaps; seeds 0, 1): every
+# window validated 6.590 / 6.153 mm, one in two 6.593 / 6.144, one in three 6.579 / 6.146
+# (the whole clip in one solve: 9.239 / 8.846), seed 1 in 81, 72 and 65 s.
+VALIDATE_EVERY = 3
 
 
 def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
-                  solver_options: dict) -> np.ndarray:
+                  solver_options: dict, borrowed: list | None = None):
+    """The method's fill of ``matrix`` in the unit scale, back in the clip's units.
+
+    With ``borrowed`` (a list, possibly empty) the method's ``windowed`` form is called
+    with those validations and (fill, validation) is returned.
+    """
     scale = UnitScale.fit(matrix, observed)
+    fn = get_method(method)
     try:
-        solved = get_method(method)(scale.forward(np.where(observed, matrix, 0.0)), observed,
-                                    **solver_options)
+        if borrowed is not None:
+            solved, validation = fn.windowed(scale.forward(np.where(observed, matrix, 0.0)),
+                                             observed, borrowed=borrowed, **solver_options)
+            return scale.inverse(solved), validation
+        solved = fn(scale.forward(np.where(observed, matrix, 0.0)), observed,
+                    **solver_options)
     except (np.linalg.LinAlgError, FloatingPointError) as exc:
         # A numerical breakdown (found by fuzzing: coordinates near the float32 limit in a
         # corrupt C3D made an SVD fail) is a clean failure of this clip, not a traceback.
@@ -177,6 +195,43 @@ def window_bounds(n_frames: int, window: int, overlap: int) -> list[tuple[int, i
     step = window - overlap
     starts = list(range(0, n_frames - window, step)) + [n_frames - window]
     return [(a, a + window) for a in starts]
+
+
+def _window_fills(matrix: np.ndarray, observed: np.ndarray, bounds: list[tuple[int, int]],
+                  method: str, solver_options: dict):
+    """Each window's fill, window after window.
+
+    For a method with a ``windowed`` form the windows 0, VALIDATE_EVERY, 2·VALIDATE_EVERY,
+    … and the last validate themselves, and each window between borrows the validations
+    of the nearest validated windows on both sides; the validated window after it is
+    solved first and its fill held (one window's array) until its turn.
+    """
+    def solve(k: int, borrowed: list | None = None):
+        start, stop = bounds[k]
+        return _solve_scaled(matrix[:, start:stop], observed[:, start:stop], method,
+                             solver_options, borrowed)
+
+    if getattr(get_method(method), "windowed", None) is None or len(bounds) < 3:
+        for k in range(len(bounds)):
+            yield solve(k)
+        return
+    validated = sorted(set(range(0, len(bounds), VALIDATE_EVERY)) | {len(bounds) - 1})
+    held: dict[int, np.ndarray] = {}
+    validations: dict[int, object] = {}
+    for k in range(len(bounds)):
+        if k in held:
+            yield held.pop(k)
+            continue
+        if k in validated:
+            fill, validations[k] = solve(k, [])
+            yield fill
+            continue
+        before = max(j for j in validated if j < k)
+        after = min(j for j in validated if j > k)
+        if after not in validations:
+            held[after], validations[after] = solve(after, [])
+        fill, _ = solve(k, [validations[before], validations[after]])
+        yield fill
 
 
 def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trnn", *,
@@ -205,14 +260,15 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
     # (a window only reads frames no earlier window has written). The sums are those of
     # accumulating every window into one clip-sized array, in the same order.
     pending, pending_weight = np.zeros((matrix.shape[0], 0)), np.zeros(0)
-    for index, (start, stop) in enumerate(bounds):
+    fills = _window_fills(matrix, observed, bounds, method, solver_options)
+    for index, ((start, stop), fill) in enumerate(zip(bounds, fills)):
         w = np.ones(stop - start)
         if start > 0:
             w[:window_overlap] = ramp
         if stop < n:
             w[-window_overlap:] = ramp[::-1]
-        total = w * _solve_scaled(matrix[:, start:stop], observed[:, start:stop], method,
-                                  solver_options)
+        total = w * fill
+        del fill
         weight = w.copy()
         carried = pending.shape[1]
         total[:, :carried] += pending

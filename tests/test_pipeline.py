@@ -268,6 +268,53 @@ def test_windows_are_streamed_into_the_clip_as_if_accumulated_and_divided():
     np.testing.assert_array_equal(inplace, expected)
 
 
+# A stand-in for a method that lends validation between windows (``fn.windowed``): the
+# spline's fill, and a record of which validations each window was lent.
+WINDOWED_CALLS: list = []
+
+
+def fake_windowed_method(matrix, observed, **options):
+    from mocapfill.solvers.interp import spline
+
+    return spline(matrix, observed)
+
+
+def _fake_windowed(matrix, observed, *, borrowed, **options):
+    if borrowed:
+        WINDOWED_CALLS.append(tuple(borrowed))
+        return fake_windowed_method(matrix, observed), None
+    WINDOWED_CALLS.append("validates")
+    return fake_windowed_method(matrix, observed), len(WINDOWED_CALLS) - 1
+
+
+fake_windowed_method.windowed = _fake_windowed
+
+
+def test_windows_between_validated_ones_borrow_their_neighbours_validations(monkeypatch):
+    from mocapfill import pipeline
+    from mocapfill.solvers import METHODS
+
+    monkeypatch.setitem(METHODS, "lender", "tests.test_pipeline:fake_windowed_method")
+    monkeypatch.setattr(pipeline, "VALIDATE_EVERY", 2)
+    WINDOWED_CALLS.clear()
+    truth = smooth_clip(4700, 5)
+    gapped = truth
+    for marker, start in [(0, 300), (1, 1200), (2, 2000), (3, 2900), (4, 3500), (0, 4400)]:
+        gapped = with_gap(gapped, marker, start, start + 70)
+    matrix, observed = gapped.matrix()
+    assert len(pipeline.window_bounds(4700, 1000, 200)) == 6
+    got = pipeline.complete_matrix(matrix, observed, "lender", window_frames=1000,
+                                   window_overlap=200)
+    # Windows 0, 2, 4 and the last validate themselves (calls 0, 1, 3, 5); window 1 is
+    # lent those of 0 and 2 (so 2 is solved before it), window 3 those of 2 and 4.
+    assert WINDOWED_CALLS == ["validates", "validates", (0, 1), "validates", (1, 3),
+                              "validates"]
+    # Solving ahead and holding a window does not change how the windows are stitched.
+    expected = pipeline.complete_matrix(matrix, observed, "spline", window_frames=1000,
+                                        window_overlap=200)
+    np.testing.assert_array_equal(got, expected)
+
+
 def test_clip_with_every_sample_missing_is_refused():
     clip = smooth_clip(50, 3)
     empty = clip.with_positions(clip.positions, np.zeros_like(clip.observed))

@@ -509,12 +509,41 @@ def _without_outliers(w: np.ndarray, segments: list[np.ndarray], rounds: int = 3
 
 
 @dataclass(frozen=True)
+class Validation:
+    """What the stand-ins showed: their evidence by length class, and by the real gap each
+    stood in for (indices into that clip's interior gaps, so meaningful for it alone)."""
+
+    names: tuple[str, ...]
+    by_class: dict[int, list[Evidence]]
+    by_gap: dict[int, list[Evidence]]
+
+    @staticmethod
+    def pooled(validations: list[Validation]) -> Validation:
+        """The length-class evidence of several clips (windows of one clip) together.
+
+        Evidence is additive (Gram matrices of the errors), so the pooled stand-ins weigh
+        as if one validation had hidden them all. The per-gap evidence is left out: it
+        names gaps of the clip it came from.
+        """
+        names = validations[0].names
+        if any(v.names != names for v in validations):
+            raise ValueError("validations of different candidates cannot be pooled")
+        by_class: dict[int, list[Evidence]] = {}
+        for validation in validations:
+            for cls, blocks in validation.by_class.items():
+                by_class.setdefault(cls, []).extend(blocks)
+        return Validation(names, by_class, {})
+
+
+@dataclass(frozen=True)
 class BlendReport:
-    """What the validation learned: weights per length class, candidate names, sizes."""
+    """What the validation learned: weights per length class, candidate names, sizes, and
+    the validation itself (to be lent to a neighbouring window, see :func:`blend`)."""
 
     names: tuple[str, ...]
     weights: dict[int, np.ndarray]
     pseudo_gaps: int
+    validation: Validation
 
 
 def _stand_in_errors(fill_fn: Candidate, blinded: np.ndarray, train: np.ndarray,
@@ -541,6 +570,7 @@ def _hidden_samples(hidden: list, groups: np.ndarray, observed: np.ndarray
 def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candidate], *,
           default: str, seed: int = 0, validation_fraction: float = 0.1,
           prior: dict[str, float] | None = None, prior_share: float = 0.5,
+          validation: Validation | None = None, costly: tuple[str, ...] = (),
           ) -> tuple[np.ndarray, BlendReport]:
     """Fill every interior gap with a validated convex blend of the candidate fills.
 
@@ -562,6 +592,13 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         Seed of the pseudo-gap placement (the fill is deterministic for a given seed).
     validation_fraction
         Largest share of the observed samples hidden for validation.
+    validation
+        Evidence gathered on another clip with the same candidates (usually the
+        neighbouring windows of a long clip, :meth:`Validation.pooled`): no stand-ins are
+        hidden and the candidates run once, on the real mask. Without it the clip
+        validates itself, which runs every candidate twice.
+    costly
+        Names of the slowest candidates, whose runs start first (scheduling only).
 
     Returns
     -------
@@ -572,10 +609,15 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     groups = row_groups(observed)
     gapset = GapSet(groups, interior_gaps(observed, groups))
     rng = np.random.default_rng(seed)
-    hidden = pseudo_gaps(observed, gapset, rng, fraction=validation_fraction)
+    if validation is not None and validation.names != names:
+        raise ValueError(f"validation of candidates {validation.names}, not {names}")
+    hidden = ([] if validation is not None else
+              pseudo_gaps(observed, gapset, rng, fraction=validation_fraction))
 
     errors: dict[int, list[Evidence]] = {}
     own: dict[int, list[Evidence]] = {}        # real gap index -> its stand-ins' evidence
+    if validation is not None:
+        errors, own = validation.by_class, validation.by_gap
     if hidden:
         train = observed.copy()
         # The global candidate leans on the complete frames (its warm start is their
@@ -592,20 +634,23 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
             kept.append(((g, s, t), source))
         hidden = kept
     # Every candidate runs twice, on the validation mask and on the real one; the runs are
-    # independent, so they share the cores: each candidate's two runs side by side, in the
-    # candidates' order (the default lists TrNN, the costliest, first). A validation run
-    # keeps only its errors on the stand-ins, not its full fill.
-    jobs = [partial(fn, matrix, observed) for fn in candidates.values()]
+    # independent, so they share the cores: each candidate's two runs side by side, the
+    # ``costly`` candidates first, so that no core is left alone with a long run at the
+    # end. A validation run keeps only its errors on the stand-ins, not its full fill.
+    first = [names.index(name) for name in costly if name in candidates]
+    order = first + [i for i in range(len(names)) if i not in first]
+    jobs = [partial(candidates[names[i]], matrix, observed) for i in order]
     if hidden:
         blinded = np.where(train, matrix, 0.0)
         sample_rows, sample_frames, bounds = _hidden_samples(hidden, groups, observed)
-        trials = [partial(_stand_in_errors, fn, blinded, train, matrix, sample_rows,
-                          sample_frames) for fn in candidates.values()]
+        trials = [partial(_stand_in_errors, candidates[names[i]], blinded, train, matrix,
+                          sample_rows, sample_frames) for i in order]
         jobs = [job for pair in zip(trials, jobs) for job in pair]
     done = run_all(jobs)
-    fills = done[1::2] if hidden else done
+    back = np.argsort(order)                   # job position of each candidate
+    fills = [(done[1::2] if hidden else done)[j] for j in back]
     if hidden:
-        trial_errors = done[0::2]
+        trial_errors = [done[0::2][j] for j in back]
         for index, ((_, a, b), source) in enumerate(hidden):
             lo, hi = bounds[index], bounds[index + 1]
             # Samples row by row, as the (rows × frames) block of the stand-in.
@@ -641,4 +686,5 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         run, frames = gap_frames(a, b)
         rows, frames = groups[g][run], frames[:, None]
         out[rows, frames] = sum(wk * f[rows, frames] for wk, f in zip(w, fills) if wk > 0)
-    return out, BlendReport(names, weights, len(hidden))
+    return out, BlendReport(names, weights, len(hidden),
+                            validation or Validation(names, errors, own))

@@ -24,11 +24,16 @@ Two entry points behind the common solver signature:
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ._linalg import linear_fill, spd_inverse, temporal_solve
+
+if TYPE_CHECKING:
+    from .gapwise import Validation
 
 
 @dataclass
@@ -370,16 +375,31 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     **trnn_options
         Passed to :func:`complete_lowrank` (rank, d, lam, mu, rho, eta0, tol, max_iter).
     """
+    return complete_window(matrix, observed, seed=seed,
+                           validation_fraction=validation_fraction, **trnn_options)[0]
+
+
+def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
+                    borrowed: Sequence[Validation | None] = (), seed: int = 0,
+                    validation_fraction: float = 0.1, **trnn_options
+                    ) -> tuple[np.ndarray, Validation | None]:
+    """:func:`complete` for one window of a long clip, lending or borrowing validation.
+
+    With ``borrowed`` validations (those of neighbouring windows) whose candidates are this
+    window's, their pooled evidence sets the weights and the candidates run once; with
+    none that fit, the window validates itself as :func:`complete` does. Returns the
+    completed window and the validation used (None where the window has no gap).
+    """
     from functools import partial
 
-    from .gapwise import blend, odd_spline_fill, regression_fill, rigid_fill, row_groups
+    from .gapwise import Validation, blend, odd_spline_fill, regression_fill, rigid_fill, row_groups
     from .gaussian import affordable as gaussian_affordable
     from .gaussian import gap_fill as gaussian_fill
     from .interp import spline
 
     trnn_options.pop("rate", None)
     if observed.all():
-        return np.array(matrix, dtype=np.float64)
+        return np.array(matrix, dtype=np.float64), None
     candidates = {
         "trnn": lambda a, o: complete_lowrank(a, o, **trnn_options),
         "spline": spline,
@@ -402,9 +422,14 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
         # A budget of PCA models per marker keeps clips with gaps overlapping in many
         # combinations from costing one PCA each (validation judges what is left).
         candidates["pca"] = partial(pca, max_models=8)
-    completed, _ = blend(matrix, observed, candidates, default="trnn", seed=seed,
-                         validation_fraction=validation_fraction)
-    return completed
+    names = tuple(candidates)
+    fitting = [v for v in borrowed if v is not None and v.names == names]
+    completed, report = blend(matrix, observed, candidates, default="trnn", seed=seed,
+                              validation_fraction=validation_fraction,
+                              validation=Validation.pooled(fitting) if fitting else None,
+                              costly=("trnn", "pca"))
+    return completed, report.validation
 
 
 complete.forwards_to = complete_lowrank     # its **trnn_options (see solvers.option_names)
+complete.windowed = complete_window         # lends validation between windows (pipeline)

@@ -198,3 +198,78 @@ def test_outliers_are_judged_again_around_the_median_of_the_others():
     np.testing.assert_allclose(once, np.r_[np.full(5, 0.2), np.zeros(3)])
     again = _without_outliers(w, fills)
     np.testing.assert_allclose(again, np.r_[np.full(4, 0.25), np.zeros(4)])
+
+
+def _counting(fn, calls: list, name: str):
+    def candidate(matrix, observed):
+        calls.append((name, observed.copy()))
+        return fn(matrix, observed)
+    return candidate
+
+
+def test_a_borrowed_validation_weighs_the_fill_without_running_the_candidates_twice():
+    from mocapfill.solvers._linalg import linear_fill
+    from mocapfill.solvers.gapwise import Validation, blend
+
+    t = np.arange(600) / 60.0
+    truth = np.vstack([np.sin(1.3 * (j + 1) * t + j) for j in range(18)])   # 6 markers
+
+    def clip(gaps):
+        observed = _mask(6, 600, gaps)
+        return np.where(observed, truth, 0.0), observed
+
+    calls: list = []
+    candidates = {"exact": _counting(lambda a, o: truth.copy(), calls, "exact"),
+                  "linear": _counting(linear_fill, calls, "linear")}
+    first, first_mask = clip([(0, 100, 130), (2, 300, 320), (4, 450, 460)])
+    _, report = blend(first, first_mask, candidates, default="linear")
+    assert sorted(name for name, _ in calls) == ["exact", "exact", "linear", "linear"]
+    lent = report.validation
+    assert lent.by_class and lent.by_gap          # evidence per class and per real gap
+
+    calls.clear()
+    second, second_mask = clip([(1, 200, 226), (3, 500, 512)])
+    filled, second_report = blend(second, second_mask, candidates, default="linear",
+                                  validation=Validation.pooled([lent]))
+    # Once each, on the real mask; the evidence says "exact", so the gaps are exact.
+    assert sorted(name for name, _ in calls) == ["exact", "linear"]
+    assert all((mask == second_mask).all() for _, mask in calls)
+    assert second_report.pseudo_gaps == 0
+    np.testing.assert_allclose(filled, truth, atol=1e-12)
+
+
+def test_pooled_validations_add_their_class_evidence_and_drop_the_per_gap_evidence():
+    from mocapfill.solvers.gapwise import Validation
+
+    block = evidence(np.ones((4, 2)))
+    a = Validation(("x", "y"), {0: [block], 3: [block]}, {5: [block]})
+    b = Validation(("x", "y"), {3: [block, block]}, {})
+    pooled = Validation.pooled([a, b])
+    assert {cls: len(blocks) for cls, blocks in pooled.by_class.items()} == {0: 1, 3: 3}
+    assert pooled.by_gap == {}
+    assert len(a.by_class[3]) == 1                 # the lenders are left as they were
+    with pytest.raises(ValueError, match="different candidates"):
+        Validation.pooled([a, Validation(("x", "z"), {}, {})])
+
+
+def test_costly_candidates_start_first_and_the_fill_does_not_depend_on_the_order(monkeypatch):
+    from mocapfill.solvers._linalg import linear_fill
+    from mocapfill.solvers.gapwise import blend
+    from mocapfill.solvers.interp import spline
+
+    monkeypatch.setenv("MOCAPFILL_THREADS", "1")        # jobs run in the order given
+    t = np.arange(400) / 60.0
+    truth = np.vstack([np.sin(0.7 * (j + 1) * t) for j in range(12)])
+    observed = _mask(4, 400, [(0, 50, 62), (1, 200, 203), (3, 300, 340)])
+    matrix = np.where(observed, truth, 0.0)
+    results = {}
+    for costly in ((), ("slow",)):
+        calls: list = []
+        candidates = {"linear": _counting(linear_fill, calls, "linear"),
+                      "spline": _counting(spline, calls, "spline"),
+                      "slow": _counting(lambda a, o: spline(a, o) + 0.0, calls, "slow")}
+        results[costly], _ = blend(matrix, observed, candidates, default="spline",
+                                   costly=costly)
+        names = [name for name, _ in calls]
+        assert names[:2] == (["slow", "slow"] if costly else ["linear", "linear"])
+    np.testing.assert_array_equal(results[()], results[("slow",)])
