@@ -423,7 +423,9 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
         # combinations from costing one PCA each (validation judges what is left).
         candidates["pca"] = partial(pca, max_models=8)
     names = tuple(candidates)
-    fitting = [v for v in borrowed if v is not None and v.names == names]
+    # A lender with no evidence (a window without gaps, or too few for a stand-in) would
+    # leave every gap to the default candidate: the window then validates itself.
+    fitting = [v for v in borrowed if v is not None and v.names == names and v.by_class]
     completed, report = blend(matrix, observed, candidates, default="trnn", seed=seed,
                               validation_fraction=validation_fraction,
                               validation=Validation.pooled(fitting) if fitting else None,

@@ -70,6 +70,27 @@ def test_complete_keeps_observed_entries():
     np.testing.assert_allclose(filled[observed], X[observed], atol=1e-12)
 
 
+def test_a_window_lent_only_empty_validations_validates_itself():
+    from mocapfill.solvers.gapwise import Validation
+    from mocapfill.solvers.trnn import complete_window
+
+    X = _smooth_low_rank_clip(n=300, markers=8)
+    observed = np.ones_like(X, bool)
+    observed[3:6, 100:130] = False
+    observed[9:12, 200:203] = False
+    matrix = np.where(observed, X, 0.0)
+    own_fill, own = complete_window(matrix, observed)
+    assert own.by_class                           # the clip's own stand-ins
+    empty = Validation(own.names, {}, {})         # e.g. from a window without gaps
+    other = Validation(own.names[:-1], own.by_class, {})   # other candidates
+    fill, used = complete_window(matrix, observed, borrowed=[None, empty, other])
+    assert used is not empty and used.by_class and used.by_gap
+    np.testing.assert_array_equal(fill, own_fill)
+    lent_fill, lent = complete_window(matrix, observed, borrowed=[own])
+    assert lent.by_class == own.by_class and not lent.by_gap
+    np.testing.assert_allclose(lent_fill[observed], X[observed], atol=1e-12)
+
+
 def _cmu_85_02():
     from mocapfill.formats import read
 
