@@ -274,7 +274,10 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
         click.echo(f"mocapfill: note: {in_path}: {note}", err=True)
     # A BVH/AMC written back to its own format is completed in joint-channel space.
     space = "channels" if formats.same_skeleton_format(in_path, out_path) else "positions"
-    result = run_repair(motion, options(_parse_max_gap(max_gap, motion.rate), space))
+    from .pipeline import reporting_windows
+
+    with _WindowProgress() as progress, reporting_windows(progress):
+        result = run_repair(motion, options(_parse_max_gap(max_gap, motion.rate), space))
     formats.write(result.motion, out_path)
     if gaps_report is not None:
         from .report import write_gaps_report
@@ -321,6 +324,30 @@ def _batch_max_gap(text: str | None) -> tuple[int | None, float | None]:
     if text.strip().lower().endswith("s"):
         return None, float(text.strip()[:-1])
     return frames, None
+
+
+class _WindowProgress:
+    """The progress bar of one long clip's windows (clips over 12,000 frames are solved in
+    windows; a 30-minute clip takes minutes): stderr, only when it is a terminal."""
+
+    def __init__(self) -> None:
+        self.bar = None
+
+    def __enter__(self) -> _WindowProgress:
+        return self
+
+    def __call__(self, done: int, total: int) -> None:
+        if self.bar is None and sys.stderr.isatty():
+            self.bar = click.progressbar(length=total, label="solving windows",
+                                         file=sys.stderr, show_pos=True, show_eta=True)
+            self.bar.__enter__()
+        if self.bar is not None:
+            self.bar.update(done - self.bar.pos)
+
+    def __exit__(self, *exc) -> None:
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
+            self.bar = None
 
 
 class _BatchProgress:

@@ -9,7 +9,10 @@ from __future__ import annotations
 import fnmatch
 import math
 import time
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -197,6 +200,22 @@ def window_bounds(n_frames: int, window: int, overlap: int) -> list[tuple[int, i
     return [(a, a + window) for a in starts]
 
 
+# Called as progress(windows done, windows in all) after each window of a long clip (the
+# command line's progress bar; see :func:`reporting_windows`).
+_WINDOW_PROGRESS: ContextVar[Callable[[int, int], None] | None] = ContextVar(
+    "mocapfill_window_progress", default=None)
+
+
+@contextmanager
+def reporting_windows(progress: Callable[[int, int], None]):
+    """Within the block, long clips report ``progress(done, total)`` after each window."""
+    token = _WINDOW_PROGRESS.set(progress)
+    try:
+        yield
+    finally:
+        _WINDOW_PROGRESS.reset(token)
+
+
 def _window_fills(matrix: np.ndarray, observed: np.ndarray, bounds: list[tuple[int, int]],
                   method: str, solver_options: dict):
     """Each window's fill, window after window.
@@ -260,6 +279,9 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
     # (a window only reads frames no earlier window has written). The sums are those of
     # accumulating every window into one clip-sized array, in the same order.
     pending, pending_weight = np.zeros((matrix.shape[0], 0)), np.zeros(0)
+    progress = _WINDOW_PROGRESS.get()
+    if progress is not None:
+        progress(0, len(bounds))
     fills = _window_fills(matrix, observed, bounds, method, solver_options)
     for index, ((start, stop), fill) in enumerate(zip(bounds, fills)):
         w = np.ones(stop - start)
@@ -280,6 +302,8 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
         pending, pending_weight = total[:, final:].copy(), weight[final:].copy()
         del total
         release_memory()            # the window's freed arrays, back to the system
+        if progress is not None:
+            progress(index + 1, len(bounds))
     return out
 
 

@@ -268,6 +268,20 @@ def test_windows_are_streamed_into_the_clip_as_if_accumulated_and_divided():
     np.testing.assert_array_equal(inplace, expected)
 
 
+def test_long_clips_report_each_window_within_reporting_windows():
+    from mocapfill.pipeline import complete_matrix, reporting_windows
+
+    truth = smooth_clip(2650, 4)
+    matrix, observed = with_gap(truth, 1, 900, 960).matrix()
+    calls = []
+    with reporting_windows(lambda done, total: calls.append((done, total))):
+        complete_matrix(matrix, observed, "spline", window_frames=1000, window_overlap=200)
+        complete_matrix(matrix[:, :900], observed[:, :900], "spline", window_frames=1000,
+                        window_overlap=200)                   # one window: nothing to tell
+    complete_matrix(matrix, observed, "spline", window_frames=1000, window_overlap=200)
+    assert calls == [(0, 4), (1, 4), (2, 4), (3, 4), (4, 4)]
+
+
 # A stand-in for a method that lends validation between windows (``fn.windowed``): the
 # spline's fill, and a record of which validations each window was lent.
 WINDOWED_CALLS: list = []
