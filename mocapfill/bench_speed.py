@@ -170,6 +170,10 @@ def _synthetic(frames: int, markers: int, missing: float, seed: int) -> Motion:
     return Motion(positions, observed, labels, 120.0, "mm")
 
 
+# Cases with more marker samples than this (85_12: 184,459) are timed once, alone.
+BIG_CASE_SAMPLES = 1_000_000
+
+
 def run_speed(runs: int = 5, quick: bool = False, compare: bool = True) -> list[SpeedRow]:
     """Run the speed cases; clips that need ../shared/data are skipped when it is absent."""
     rows: list[SpeedRow] = []
@@ -198,10 +202,13 @@ def run_speed(runs: int = 5, quick: bool = False, compare: bool = True) -> list[
         methods = ["trnn"] + (["trnn-paper", "tsmc"] if compare else [])
         for label, path, target in cases:
             motion = formats.read(path)
-            case_runs = runs if motion.n_frames <= 20_000 else 1
+            # The 30-minute and the 300-marker clips take minutes each: one run of the
+            # default, no comparison methods, no in-process iteration count.
+            big = motion.n_frames * motion.n_markers > BIG_CASE_SAMPLES
+            case_runs = 1 if big else runs
             for method in methods:
-                if method != "trnn" and motion.n_frames > 20_000:
-                    continue  # the comparison methods are minutes-long on 30-minute clips
+                if method != "trnn" and big:
+                    continue
                 out = work / f"out{path.suffix}"
                 walls, rss = time_command(
                     _cli() + ["repair", str(path), str(out), "--method", method],
@@ -209,7 +216,7 @@ def run_speed(runs: int = 5, quick: bool = False, compare: bool = True) -> list[
                 row = SpeedRow(label, method, motion.n_frames, motion.n_markers, len(walls),
                                min(walls), statistics.median(walls), max(walls), rss,
                                target_s=target if method == "trnn" else None)
-                if method in ("trnn", "trnn-paper") and motion.n_frames <= 20_000:
+                if method in ("trnn", "trnn-paper") and not big:
                     row.iterations, row.ms_per_iteration = _solver_stats(path, method)
                     row.floor_ms_per_iteration = _floor_for(method, 3 * motion.n_markers,
                                                             motion.n_frames)

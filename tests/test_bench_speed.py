@@ -24,3 +24,34 @@ def test_table_lists_every_case():
     table = format_speed_table(rows)
     assert table.count("\n") == 3
     assert "| a | trnn | 0.100 / 0.200 / 0.300 | 1.0 | 7 | 1.5 | 0.5 | 50 |" in table
+
+
+def test_big_cases_are_timed_once_and_without_the_comparison_methods(monkeypatch, tmp_path):
+    from mocapfill import bench_speed
+
+    calls = []
+
+    def timed(args, runs):
+        calls.append((args[args.index("repair") + 1] if "repair" in args else "--help",
+                      args[-1] if "--method" in args else "-", runs))
+        return [0.1] * runs, 10.0
+
+    small = bench_speed._synthetic
+    monkeypatch.setattr(bench_speed, "time_command", timed)
+    monkeypatch.setattr(bench_speed, "_solver_stats", lambda path, method: (5, 1.0))
+    monkeypatch.setattr(bench_speed, "SHARED_DATA", tmp_path)     # CMU clips: skipped
+    # The 216,000 × 41 clip as 400 × 41 (16,400 samples, "big" below), the 10,000 × 300
+    # one as 300 × 10 (3,000 samples).
+    monkeypatch.setattr(bench_speed, "_synthetic", lambda frames, markers, missing, seed:
+                        small(400, 41, missing, seed) if markers == 41
+                        else small(300, 10, missing, seed))
+    monkeypatch.setattr(bench_speed, "BIG_CASE_SAMPLES", 10_000)
+    rows = bench_speed.run_speed(runs=3)
+    timed_cases = [(path.rsplit("/", 1)[-1], method, runs) for path, method, runs in calls
+                   if path != "--help"]
+    assert timed_cases == [("synthetic_216000x41.npz", "trnn", 1),
+                           ("synthetic_10000x300.npz", "trnn", 3),
+                           ("synthetic_10000x300.npz", "trnn-paper", 1),
+                           ("synthetic_10000x300.npz", "tsmc", 1)]
+    long_row = next(r for r in rows if "216000" in r.case)
+    assert long_row.iterations is None and long_row.runs == 1
