@@ -175,14 +175,14 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
     with those validations and (fill, validation) is returned.
     """
     scale = UnitScale.fit(matrix, observed)
+    scaled = scale.forward(np.where(observed, matrix, 0.0))
     fn = get_method(method)
     try:
         if borrowed is not None:
-            solved, validation = fn.windowed(scale.forward(np.where(observed, matrix, 0.0)),
-                                             observed, borrowed=borrowed, **solver_options)
+            solved, validation = fn.windowed(scaled, observed, borrowed=borrowed,
+                                             **solver_options)
             return scale.inverse(solved), validation
-        solved = fn(scale.forward(np.where(observed, matrix, 0.0)), observed,
-                    **solver_options)
+        solved = fn(scaled, observed, **solver_options)
     except (np.linalg.LinAlgError, FloatingPointError) as exc:
         # A numerical breakdown (found by fuzzing: coordinates near the float32 limit in a
         # corrupt C3D made an SVD fail) is a clean failure of this clip, not a traceback.

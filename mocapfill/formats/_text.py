@@ -142,7 +142,12 @@ def cell_text(raw: str) -> str:
 def printable(text: str) -> str:
     """``text`` with the undecodable bytes ``read_lines`` kept as surrogates decoded as
     Latin-1 (a lone surrogate cannot be printed or encoded)."""
-    data = text.encode(ENCODING, ERRORS)
+    return utf8_or_latin1(text.encode(ENCODING, ERRORS))
+
+
+def utf8_or_latin1(data: bytes) -> str:
+    """Bytes as UTF-8 where they are valid UTF-8 (plain ASCII is), else as Latin-1 (a lone
+    byte ≥ 0x80 is not valid UTF-8, so Latin-1 text reads as Latin-1)."""
     try:
         return data.decode(ENCODING)
     except UnicodeDecodeError:

@@ -50,6 +50,7 @@ import numpy as np
 
 from ..errors import FormatError, ParameterError
 from ..motion import Motion, unique_labels
+from ._text import utf8_or_latin1
 
 PROCESSORS = {84: "intel", 85: "dec", 86: "mips"}
 # Parameters listing POINT entries that are model outputs, not marker trajectories.
@@ -207,21 +208,10 @@ def _strings(param: _Param | None) -> list[str]:
     width = param.dims[0] if param.dims else len(data)
     if width == 0:
         return []
-    return [_decode(data[i:i + width]).replace("\x00", " ").strip()
+    # The format declares no encoding: most writers store ASCII, some Latin-1, and names
+    # outside Latin-1 can only have been stored as UTF-8 (ours are, see :func:`_encode`).
+    return [utf8_or_latin1(data[i:i + width]).replace("\x00", " ").strip()
             for i in range(0, len(data), width)]
-
-
-def _decode(data: bytes) -> str:
-    """A C3D string: UTF-8 where the bytes are valid UTF-8 (plain ASCII is), else Latin-1.
-
-    The format has no declared encoding; most writers store ASCII, some Latin-1 (a lone
-    byte ≥ 0x80 is not valid UTF-8, so those read as before), and names outside Latin-1
-    can only have been stored as UTF-8 (our writer does, see :func:`_encode`).
-    """
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError:
-        return data.decode("latin-1")
 
 
 def _encode(text: str) -> bytes:
@@ -534,7 +524,7 @@ def _char_param(group_id: int, name: str, strings: list[str] | str) -> bytes:
     if too_long is not None:
         # The dimension is one byte: a longer string would have to be cut, and cut labels
         # can collide. Refused rather than written with other names than the clip's.
-        shown = _decode(too_long)
+        shown = utf8_or_latin1(too_long)
         shown = shown if len(shown) <= 40 else shown[:40] + "..."
         raise FormatError(None, f"POINT:{name} {shown!r} is {len(too_long)} bytes long; a "
                                 "C3D file holds at most 255 per entry")
