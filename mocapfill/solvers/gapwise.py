@@ -39,11 +39,9 @@ from functools import partial
 from typing import Callable
 
 import numpy as np
-from scipy.interpolate import make_interp_spline
-from scipy.optimize import nnls
 
 from ..gaps import missing_runs
-from ._linalg import linear_fill, pair_distances
+from ._linalg import linear_fill, nnls, pair_distances
 from ._threads import run_all
 
 Candidate = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -130,7 +128,8 @@ def odd_spline_fill(matrix: np.ndarray, observed: np.ndarray, *, degree: int = 5
                     ) -> np.ndarray:
     """Interpolating spline of odd ``degree`` along time through each row's samples.
 
-    Degree 5 or 7 (``scipy.interpolate.make_interp_spline``) is far more accurate than a
+    Degree 5 or 7 (:func:`mocapfill.solvers._splines.odd_spline`, the interpolant of
+    ``scipy.interpolate.make_interp_spline``) is far more accurate than a
     cubic on smooth 120 Hz motion and far worse on noisy or abrupt motion; validation
     decides. End gaps are held (as the cubic spline does).
 
@@ -142,6 +141,7 @@ def odd_spline_fill(matrix: np.ndarray, observed: np.ndarray, *, degree: int = 5
     gaps (squared error 1.0e−2 against the cubic's 1.3e−4); stand-ins almost never fall
     there, so the blend had trusted the quintic for that length class.
     """
+    from ._splines import odd_spline
     from .interp import _interpolate, cubic_interpolant
 
     support = (degree + 1) // 2
@@ -149,7 +149,7 @@ def odd_spline_fill(matrix: np.ndarray, observed: np.ndarray, *, degree: int = 5
     def make(t_obs: np.ndarray, y_obs: np.ndarray):
         if t_obs.size <= degree:             # every gap lacks support: the cubic's row
             return cubic_interpolant(t_obs, y_obs)
-        high = make_interp_spline(t_obs, y_obs, k=degree)
+        high = odd_spline(t_obs, y_obs, degree)
         # Frames with fewer than ``support`` samples before them (t < t_obs[support − 1])
         # or after them (t > t_obs[−support]) take the cubic.
         first, last = t_obs[support - 1], t_obs[-support]
@@ -384,7 +384,7 @@ def _convex_fit(gram: np.ndarray, size: int) -> np.ndarray:
     R = np.sqrt(np.maximum(values, 0.0))[:, None] * vectors.T
     scale = np.sqrt(np.trace(gram) / (size * k)) or 1.0
     big = 1e3 * np.sqrt(size)
-    w, _ = nnls(np.vstack([R / scale, np.full((1, k), big)]), np.r_[np.zeros(k), big])
+    w = nnls(np.vstack([R / scale, np.full((1, k), big)]), np.r_[np.zeros(k), big])
     return w / w.sum() if w.sum() > 0 else np.full(k, 1.0 / k)
 
 

@@ -4,12 +4,17 @@ Each row of the matrix (one coordinate of one marker) is interpolated through it
 samples as a function of the frame index:
 
 - :func:`linear` — piecewise linear interpolation.
-- :func:`spline` — cubic spline through the observed samples (``scipy.interpolate.CubicSpline``
-  with its default "not-a-knot" end conditions; de Boor, *A Practical Guide to Splines*,
-  Springer 1978/2001, ch. IV).
+- :func:`spline` — cubic spline through the observed samples, "not-a-knot" end conditions
+  by default (de Boor, *A Practical Guide to Splines*, Springer 1978/2001, ch. IV; the
+  interpolant of ``scipy.interpolate.CubicSpline``).
 - :func:`pchip` — piecewise cubic Hermite interpolation with Fritsch–Carlson monotone slopes
   (Fritsch & Carlson, "Monotone piecewise cubic interpolation", SIAM J. Numer. Anal. 17(2),
-  1980; ``scipy.interpolate.PchipInterpolator``): no overshoot, monotone between samples.
+  1980; the interpolant of ``scipy.interpolate.PchipInterpolator``): no overshoot,
+  monotone between samples.
+
+The interpolants come from :mod:`mocapfill.solvers._splines` (numpy and ``scipy.linalg``;
+importing ``scipy.interpolate`` cost a sixth of a second of every command). Rows with
+the same mask (a marker's x, y, z) are interpolated together.
 
 Conventions shared by the three methods:
 
@@ -27,8 +32,8 @@ from __future__ import annotations
 from functools import partial
 
 import numpy as np
-from scipy.interpolate import CubicSpline, PchipInterpolator
 
+from . import _splines
 from ._linalg import as_problem, linear_fill
 
 __all__ = ["linear", "pchip", "spline"]
@@ -36,12 +41,21 @@ __all__ = ["linear", "pchip", "spline"]
 
 
 def _interpolate(matrix, observed, make) -> np.ndarray:
-    """Fill every row's interior gaps with ``make(t_obs, y_obs)(t)``; hold the ends."""
+    """Fill every row's interior gaps with ``make(t_obs, y_obs)(t)``; hold the ends.
+
+    Consecutive rows with one mask share the call: ``y_obs`` is (samples, rows) and the
+    interpolant returns (frames, rows).
+    """
     matrix, observed = as_problem(matrix, observed)
     out = linear_fill(matrix, observed)  # ends held, empty rows 0, interior linear
     t = np.arange(matrix.shape[1], dtype=np.float64)
-    for row in range(matrix.shape[0]):
-        mask = observed[row]
+    start = 0
+    while start < matrix.shape[0]:
+        mask = observed[start]
+        stop = start + 1
+        while stop < matrix.shape[0] and np.array_equal(observed[stop], mask):
+            stop += 1
+        rows, start = slice(start, stop), stop
         idx = np.flatnonzero(mask)
         if idx.size < 2 or idx.size == mask.size:
             continue
@@ -50,9 +64,9 @@ def _interpolate(matrix, observed, make) -> np.ndarray:
         interior[idx[-1] + 1:] = False
         if not interior.any():
             continue
-        f = make(t[idx], matrix[row, idx])
+        f = make(t[idx], matrix[rows, idx].T)
         if f is not None:
-            out[row, interior] = f(t[interior])
+            out[rows, interior] = f(t[interior]).T
     return out
 
 
@@ -73,8 +87,8 @@ def spline(matrix: np.ndarray, observed: np.ndarray, *, bc_type: str = "not-a-kn
     Parameters
     ----------
     bc_type
-        End condition of ``scipy.interpolate.CubicSpline`` ("not-a-knot", the default, reproduces
-        a cubic polynomial exactly; "natural" sets the end second derivatives to zero).
+        End condition: "not-a-knot" (the default) reproduces a cubic polynomial exactly;
+        "natural" sets the end second derivatives to zero, "clamped" the end slopes.
     rate, seed
         Shared pipeline options, ignored.
     """
@@ -85,11 +99,11 @@ def spline(matrix: np.ndarray, observed: np.ndarray, *, bc_type: str = "not-a-kn
 
 
 def cubic_interpolant(t_obs: np.ndarray, y_obs: np.ndarray, *, bc_type: str = "not-a-knot"
-                      ) -> CubicSpline | None:
-    """The cubic spline of :func:`spline` through one row's samples; None under 4 samples."""
+                      ) -> _splines.Interpolant | None:
+    """The cubic spline of :func:`spline` through a row's samples; None under 4 samples."""
     if t_obs.size < 4:
         return None
-    return CubicSpline(t_obs, y_obs, bc_type=bc_type, extrapolate=False)
+    return _splines.cubic_spline(t_obs, y_obs, bc_type)
 
 
 def pchip(matrix: np.ndarray, observed: np.ndarray, *, rate: float | None = None,
@@ -98,6 +112,4 @@ def pchip(matrix: np.ndarray, observed: np.ndarray, *, rate: float | None = None
 
     ``rate`` and ``seed`` (shared pipeline options) are accepted and ignored.
     """
-    return _interpolate(
-        matrix, observed,
-        lambda t_obs, y_obs: PchipInterpolator(t_obs, y_obs, extrapolate=False))
+    return _interpolate(matrix, observed, _splines.pchip)
