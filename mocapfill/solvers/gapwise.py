@@ -41,7 +41,7 @@ from typing import Callable
 import numpy as np
 
 from ..gaps import missing_runs
-from ._linalg import linear_fill, nnls, pair_distances
+from ._linalg import linear_fill, pair_distances, simplex_least_squares
 from ._threads import run_all
 
 Candidate = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -373,21 +373,6 @@ def _stack(blocks: list[Evidence]) -> Stack:
     return np.stack([gram for gram, _ in blocks]), np.array([size for _, size in blocks])
 
 
-def _convex_fit(gram: np.ndarray, size: int) -> np.ndarray:
-    """w ≥ 0, Σw = 1 minimising wᵀ gram w (the blend's squared error), by NNLS.
-
-    NNLS on R (RᵀR = gram) gives the same minimiser as on the stacked errors; the sum
-    constraint is a heavily weighted extra row.
-    """
-    k = gram.shape[0]
-    values, vectors = np.linalg.eigh(gram)
-    R = np.sqrt(np.maximum(values, 0.0))[:, None] * vectors.T
-    scale = np.sqrt(np.trace(gram) / (size * k)) or 1.0
-    big = 1e3 * np.sqrt(size)
-    w = nnls(np.vstack([R / scale, np.full((1, k), big)]), np.r_[np.zeros(k), big])
-    return w / w.sum() if w.sum() > 0 else np.full(k, 1.0 / k)
-
-
 def _best_single(gram: np.ndarray) -> np.ndarray:
     return np.eye(gram.shape[0])[np.argmin(np.diag(gram))]
 
@@ -402,18 +387,17 @@ def _cross_validated(stack: Stack, order: np.ndarray | None = None) -> np.ndarra
     grams, sizes = stack
     if order is None:
         order = np.arange(len(sizes))
-    gram, size = grams[order].sum(axis=0), int(sizes[order].sum())
+    gram = grams[order].sum(axis=0)
     if order.size < 4:
         return _best_single(gram)
-    folds = [(grams[half].sum(axis=0), int(sizes[half].sum()))
-             for half in (order[0::2], order[1::2])]
+    folds = [grams[half].sum(axis=0) for half in (order[0::2], order[1::2])]
     blend_err = single_err = 0.0
-    for (fit, fit_size), (test, _) in (folds, folds[::-1]):
-        w = _convex_fit(fit, fit_size)
+    for fit, test in (folds, folds[::-1]):
+        w = simplex_least_squares(fit)
         blend_err += float(w @ test @ w)
         w = _best_single(fit)
         single_err += float(w @ test @ w)
-    return _convex_fit(gram, size) if blend_err < single_err else _best_single(gram)
+    return simplex_least_squares(gram) if blend_err < single_err else _best_single(gram)
 
 
 # Bootstrap resamples whose choices are averaged (see ``_bagged``).

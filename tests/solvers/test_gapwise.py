@@ -4,10 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mocapfill.solvers._linalg import simplex_least_squares
 from mocapfill.solvers.gapwise import (
     GapSet,
     _bagged,
-    _convex_fit,
     _cross_validated,
     _stack,
     _without_outliers,
@@ -114,8 +114,8 @@ def test_odd_spline_fill_takes_the_cubic_where_one_side_lacks_support():
 def test_convex_fit_from_gram_matrices_minimises_the_stacked_error():
     rng = np.random.default_rng(3)
     blocks = [rng.normal(size=(12, 3)) * [1.0, 1.3, 2.0] for _ in range(20)]
-    gram, size = sum(b.T @ b for b in blocks), sum(b.shape[0] for b in blocks)
-    w = _convex_fit(gram, size)
+    gram = sum(b.T @ b for b in blocks)
+    w = simplex_least_squares(gram)
     assert w.min() >= 0 and np.isclose(w.sum(), 1.0)
     E = np.vstack(blocks)
     best = min(((a, b, 1 - a - b) for a in np.linspace(0, 1, 201)
@@ -124,7 +124,8 @@ def test_convex_fit_from_gram_matrices_minimises_the_stacked_error():
     assert ((E @ w) ** 2).sum() <= ((E @ np.array(best)) ** 2).sum() + 1e-9
     # Opposite errors cancel: the blend is the midpoint.
     e = rng.normal(size=(30, 1))
-    assert np.allclose(_convex_fit(*evidence(np.hstack([e, -e]))), [0.5, 0.5], atol=1e-6)
+    assert np.allclose(simplex_least_squares(evidence(np.hstack([e, -e]))[0]), [0.5, 0.5],
+                       atol=1e-6)
 
 
 def test_bagged_weights_keep_a_clear_winner_and_hedge_a_close_call():

@@ -1,4 +1,4 @@
-"""The interpolants of ``solvers._splines`` and ``_linalg.nnls`` against scipy's own.
+"""The interpolants of ``solvers._splines`` against scipy's own.
 
 scipy stays installed (the solvers use ``scipy.linalg`` and ``scipy.fft``), so the
 reference implementations are at hand: every interpolant must agree with
@@ -13,10 +13,8 @@ import sys
 import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline, PchipInterpolator, make_interp_spline
-from scipy.optimize import nnls as scipy_nnls
 
 from mocapfill.solvers import _splines
-from mocapfill.solvers._linalg import nnls
 
 
 def _samples(seed: int, n: int = 300, frames: int = 1000, columns: int | None = 3):
@@ -86,44 +84,6 @@ def test_too_few_samples_and_bad_input_are_refused():
         _splines.pchip(np.array([0.0, 2.0, 1.0]), np.ones(3))
     with pytest.raises(ValueError, match="bc_type"):
         _splines.cubic_spline(np.arange(6.0), np.ones(6), "periodic")
-
-
-def _blend_problem(rng: np.random.Generator, k: int, duplicate: bool):
-    """The NNLS the blend solves: R with RᵀR a Gram matrix of candidate errors, plus a
-    heavily weighted row for Σw = 1 (``gapwise._convex_fit``)."""
-    E = (rng.standard_normal((50, k)) * np.exp(rng.uniform(-8, 3, k))
-         + 3 * rng.standard_normal((50, 1)))
-    if duplicate:
-        E[:, -1] = E[:, 0] * (1 + 1e-9)
-    gram = E.T @ E
-    values, vectors = np.linalg.eigh(gram)
-    R = np.sqrt(np.maximum(values, 0.0))[:, None] * vectors.T
-    big = 1e3 * np.sqrt(50)
-    A = np.vstack([R / np.sqrt(np.trace(gram) / (50 * k)), np.full((1, k), big)])
-    return A, np.r_[np.zeros(k), big]
-
-
-def test_nnls_matches_scipy_on_the_blends_problems_and_on_random_ones():
-    rng = np.random.default_rng(7)
-    for trial in range(600):
-        k = int(rng.integers(1, 9))
-        if trial % 2:
-            A, b = _blend_problem(rng, k, duplicate=trial % 4 == 1)
-            ours, theirs = nnls(A, b), scipy_nnls(A, b)[0]
-            np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-7)
-        else:
-            m = int(rng.integers(1, 14))
-            A, b = rng.standard_normal((m, k)), rng.standard_normal(m)
-            ours, theirs = nnls(A, b), scipy_nnls(A, b)[0]
-            # With m < k the minimiser need not be unique: compare the residuals.
-            assert (ours >= 0).all()
-            assert np.linalg.norm(A @ ours - b) <= np.linalg.norm(A @ theirs - b) + 1e-9
-
-
-def test_nnls_keeps_the_unconstrained_solution_when_it_is_non_negative():
-    A = np.array([[1.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-    np.testing.assert_allclose(nnls(A, np.array([2.0, 1.0, 1.0])), [1.5, 1.0])
-    np.testing.assert_array_equal(nnls(A, np.array([-1.0, -1.0, -1.0])), [0.0, 0.0])
 
 
 def test_repair_imports_neither_scipy_interpolate_nor_optimize(tmp_path):
