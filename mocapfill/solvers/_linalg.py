@@ -24,7 +24,6 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from scipy.fft import dct, idct
 
 
 def as_problem(matrix: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -92,6 +91,8 @@ def temporal_solve(b: np.ndarray, eta: float, mu: float) -> np.ndarray:
     by a banded Cholesky factorisation of the pentadiagonal ``eta·I + mu·TᵀT`` (17 ms
     there); both agree to 1e−12.
     """
+    from scipy.fft import dct, idct     # here: the methods without this term skip its import
+
     b = _floating(b)
     n = b.shape[-1]
     if n > 64 and _largest_prime_factor(n) > 64:
