@@ -91,7 +91,8 @@ def temporal_solve(b: np.ndarray, eta: float, mu: float) -> np.ndarray:
     by a banded Cholesky factorisation of the pentadiagonal ``eta·I + mu·TᵀT`` (17 ms
     there); both agree to 1e−12.
     """
-    from scipy.fft import dct, idct     # here: the methods without this term skip its import
+    # Imported here: the methods without the temporal term do not pay for scipy.fft.
+    from scipy.fft import dct, idct
 
     b = _floating(b)
     n = b.shape[-1]
@@ -224,9 +225,10 @@ def simplex_least_squares(gram: np.ndarray, *, max_iter: int | None = None) -> n
     *Numerical Optimization*, 2006, §16.5). G is first divided by the best single
     column's error, so the tests compare numbers of order one whatever the candidates'
     scale. The blend used to solve this as non-negative least squares with Σw = 1 as a
-    heavily weighted extra row; where one candidate erred 10⁵ times more than another,
-    that row drowned the others' gradients in rounding and the solver stopped on a worse
-    blend (WalkL_0001: residual 1.23e−3 against 0.96e−3).
+    heavily weighted extra row. Where one candidate errs 10⁵ times more than another, that
+    row's rounding drowns the others' gradients: a Lawson–Hanson solver written for that
+    form stopped on a worse blend in one WalkL_0001 class (residual 1.23e−3 against the
+    optimum's 0.96e−3), and scipy's found the optimum only because rounding went its way.
     ``max_iter`` (default 10·k + 10) bounds the support changes; past it the current
     (feasible) weights are returned.
     """

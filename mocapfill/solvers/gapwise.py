@@ -16,9 +16,10 @@ blends such candidate fills gap by gap, with weights chosen by *validation on th
    with the hidden truth.
 3. **Weights.** For every class of gap length (1, 2, 3–4, 5–8, …, doubling) fit convex
    weights w ≥ 0, Σw = 1 that minimise the squared error of the blend on that class's
-   pseudo-gaps (non-negative least squares), kept where cross-validation shows they beat
-   the best single candidate; this choice is averaged over bootstrap resamples of the
-   pseudo-gaps (bagging).
+   pseudo-gaps (an exact quadratic programme over the simplex,
+   :func:`~mocapfill.solvers._linalg.simplex_least_squares`), kept where cross-validation
+   shows they beat the best single candidate; this choice is averaged over bootstrap
+   resamples of the pseudo-gaps (bagging).
 4. **Fill.** Run every candidate on the real mask and blend each real gap with the
    weights of its length class, leaving out on each gap of ``MIN_MODEL_GAP`` frames or
    more any candidate whose fill there is an outlier among the candidates' fills.
