@@ -170,21 +170,26 @@ def test_join_ends_adds_each_gaps_ramp_for_marker_and_single_row_groups():
         np.testing.assert_array_equal(join_ends(fill, matrix, observed, gapset), expected)
 
 
+def _one_gap(w, fills, **options):
+    """``_without_outliers`` on a single gap (it takes a batch of gaps of one length)."""
+    return _without_outliers(np.asarray(w)[None], np.stack(fills)[None], **options)[0]
+
+
 def test_a_candidate_gone_wild_on_a_gap_loses_its_weight_there():
     rng = np.random.default_rng(11)
     truth = np.cumsum(rng.normal(size=(3, 40)), axis=1)
     fills = [truth + 0.1 * rng.normal(size=truth.shape) for _ in range(6)]
     w = np.array([0.4, 0.2, 0.2, 0.1, 0.07, 0.03])
-    np.testing.assert_array_equal(_without_outliers(w, fills), w)      # all agree
+    np.testing.assert_array_equal(_one_gap(w, fills), w)      # all agree
     fills[5] = truth + 30.0                                             # 300× the others' spread
-    trimmed = _without_outliers(w, fills)
+    trimmed = _one_gap(w, fills)
     assert trimmed[5] == 0 and trimmed.sum() == pytest.approx(1.0)
     np.testing.assert_allclose(trimmed[:5], w[:5] / 0.97)
     # Only the outlier had weight: the weights stand (nothing better is known).
-    np.testing.assert_array_equal(_without_outliers(np.eye(6)[5], fills), np.eye(6)[5])
+    np.testing.assert_array_equal(_one_gap(np.eye(6)[5], fills), np.eye(6)[5])
     # Identical fills (distance 0 for most): nothing is judged an outlier.
     same = [truth] * 5 + [truth + 1.0]
-    np.testing.assert_array_equal(_without_outliers(w, same), w)
+    np.testing.assert_array_equal(_one_gap(w, same), w)
 
 
 def test_outliers_are_judged_again_around_the_median_of_the_others():
@@ -195,10 +200,44 @@ def test_outliers_are_judged_again_around_the_median_of_the_others():
     fills = [truth + 0.1 * rng.normal(size=truth.shape) for _ in range(4)]
     fills += [truth + 1.0] + [truth + 20.0] * 3
     w = np.full(8, 1 / 8)
-    once = _without_outliers(w, fills, rounds=1)
+    once = _one_gap(w, fills, rounds=1)
     np.testing.assert_allclose(once, np.r_[np.full(5, 0.2), np.zeros(3)])
-    again = _without_outliers(w, fills)
+    again = _one_gap(w, fills)
     np.testing.assert_allclose(again, np.r_[np.full(4, 0.25), np.zeros(4)])
+
+
+def test_outliers_of_many_gaps_at_once_are_those_of_each_gap_alone():
+    # The batched rule against a plain per-gap transcription with np.median, bit for bit,
+    # on gaps with no outlier, one, a cluster, identical fills and all-zero weights.
+    def alone(w, stack, rounds=3):
+        inlier = np.ones(len(w), dtype=bool)
+        for _ in range(rounds):
+            centre = np.median(stack[inlier], axis=0)
+            distance = np.sqrt(((stack - centre) ** 2).mean(axis=(1, 2)))
+            typical = float(np.median(distance[inlier]))
+            if typical <= 0:
+                break
+            judged = distance <= 3.0 * typical
+            if (judged == inlier).all():
+                break
+            inlier = judged
+        kept = np.where(inlier, w, 0.0)
+        return kept / kept.sum() if kept.sum() > 0 else w
+
+    rng = np.random.default_rng(13)
+    k, length = 7, 12
+    truth = np.cumsum(rng.normal(size=(60, 1, 3, length)), axis=3)
+    segments = truth + 0.1 * rng.normal(size=(60, k, 3, length))
+    segments[10:20, 6] += 30.0
+    segments[20:30, 4:] += rng.choice([1.0, 20.0], size=(10, 3, 1, 1))
+    segments[30:35] = truth[30:35]
+    w = rng.dirichlet(np.ones(k), size=60)
+    w[40:45] = np.eye(k)[6]
+    w[45:50] = 0.0
+    batched = _without_outliers(w, segments)
+    for g in range(60):
+        np.testing.assert_array_equal(batched[g], alone(w[g], segments[g]))
+    assert (batched[10:20, 6] == 0).all()
 
 
 def _counting(fn, calls: list, name: str):
