@@ -8,14 +8,15 @@ every job — in this process, in a pool of local worker processes, or on a
 What each status means:
 
 - ``repaired``: at least one gap was filled and the output written.
-- ``unchanged``: nothing was filled — the clip has no gaps, the gap policy left all of
-  them (``--max-gap``, ``--ends leave``, ...), or it holds nothing fillable. With an output
+- ``unchanged``: nothing was filled — the clip has no gaps, or the gap policy left all of
+  them (``--max-gap``, ``--ends leave``, ...). With an output
   folder the output is still written (a faithful copy, or a conversion with ``suffix``)
   so the mirrored tree is complete and a resumed batch skips it; in place, nothing is
   written.
 - ``skipped``: the output exists and is newer than the input (``force`` redoes it).
-- ``failed``: the file could not be read, repaired or written; ``reason`` says why. One
-  failure never stops the batch.
+- ``failed``: the file could not be read, repaired or written, or holds nothing to repair
+  from (one frame, or no marker with a single sample: bad input, as for a single file);
+  ``reason`` says why. One failure never stops the batch.
 
 Like the rest of the core this module never prints and never exits; numpy and the format
 modules are imported inside the per-file function so worker processes can limit BLAS
@@ -405,9 +406,9 @@ def repair_file(job: FileJob) -> FileRecord:
         try:
             result = repair(motion, _options_for(job, motion.rate))
         except NothingToRepair as exc:
-            if not job.in_place:
-                formats.write(motion, job.output)
-            return record(UNCHANGED, str(exc))
+            # An empty clip (one frame, no marker with a sample) is bad input, as
+            # `mocapfill repair IN OUT` reports it (exit 123): failed, and nothing written.
+            return record(FAILED, _problem(exc, job.input))
         if result.filled:
             if job.in_place:
                 _write_in_place(result.motion, job.output)
@@ -421,12 +422,18 @@ def repair_file(job: FileJob) -> FileRecord:
     except FormatError as exc:
         return record(FAILED, exc.problem)
     except MocapfillError as exc:
-        return record(FAILED, str(exc))
+        return record(FAILED, _problem(exc, job.input))
     except OSError as exc:
         name = f"{exc.filename}: " if exc.filename is not None else ""
         return record(FAILED, f"{name}{exc.strerror or exc}")
     except Exception as exc:  # noqa: BLE001 - a bug on one file must not stop the other 2,599
         return record(FAILED, f"{type(exc).__name__}: {exc}")
+
+
+def _problem(exc: Exception, path) -> str:
+    """The error's message without the ``PATH: `` it starts with (the record names the file)."""
+    message, prefix = str(exc), f"{path}: "
+    return message[len(prefix):] if message.startswith(prefix) else message
 
 
 def _not_filled(result) -> str:

@@ -129,6 +129,34 @@ def test_exit_code_is_0_when_no_file_fails(clean_tree, tmp_path):
     assert result.stderr.startswith("20 repaired, 1 unchanged in ")
 
 
+@pytest.mark.parametrize("kind", ["one frame", "no marker observed"])
+def test_an_empty_clip_fails_alone_and_in_a_batch_with_the_same_reason(tmp_path, kind):
+    # A one-frame clip used to exit 123 alone but count as "unchanged" (and be copied) in a
+    # batch; both now report it as bad input.
+    from mocapfill.motion import Motion
+
+    source = tmp_path / "in" / "empty.npz"
+    source.parent.mkdir()
+    if kind == "one frame":
+        clip = smooth_clip(1, 4)
+    else:
+        clip = smooth_clip(50, 4)
+        clip = Motion(clip.positions, np.zeros_like(clip.observed), clip.labels, clip.rate,
+                      clip.units)
+    formats.write(clip, source)
+    alone = run(source, tmp_path / "alone.npz", *LINEAR)
+    assert alone.exit_code == 123 and not (tmp_path / "alone.npz").exists()
+    report_path = tmp_path / "report.json"
+    many = run(source.parent, "-o", tmp_path / "out", "-j", "1", "--report", report_path,
+               *LINEAR)
+    assert many.exit_code == 123, many.output
+    assert not (tmp_path / "out" / "empty.npz").exists()
+    record, = _report(report_path)["files"]
+    assert record["status"] == "failed"
+    assert record["reason"] and str(source) not in record["reason"]
+    assert record["reason"] in alone.stderr         # the single file's one line
+
+
 def test_rerun_skips_up_to_date_outputs_and_redoes_changed_inputs(clean_tree, tmp_path):
     root, files = clean_tree
     out = tmp_path / "out"
