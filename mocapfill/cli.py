@@ -110,6 +110,25 @@ def main() -> None:
 
 # ---------------------------------------------------------------- shared option helpers
 
+
+def _names_a_folder(value: str) -> bool:
+    return value.endswith(("/", os.sep))
+
+
+class _OutputFile(click.Path):
+    """A file the command writes. A name ending in '/' is refused (exit 2): pathlib drops
+    the slash, so ``-o plots/`` used to write a file called ``plots``."""
+
+    def __init__(self) -> None:
+        super().__init__(path_type=Path)
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, str) and _names_a_folder(value):
+            self.fail(f"{value!r} ends with '{value[-1]}': name a file to write, not a folder",
+                      param, ctx)
+        return super().convert(value, param, ctx)
+
+
 _zero_option = click.option(
     "--zero-is-missing", type=click.Choice(["auto", "on", "off"]), default="auto",
     show_default=True,
@@ -160,8 +179,7 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
 
 
 @main.command()
-@click.argument("paths", nargs=-1, required=True, metavar="IN... [OUT]",
-                type=click.Path(path_type=Path))
+@click.argument("paths", nargs=-1, required=True, metavar="IN... [OUT]", type=click.Path())
 @click.option("-o", "--out-dir", type=click.Path(path_type=Path, file_okay=False), default=None,
               help="Batch: repair every IN (files, folders walked recursively for known "
                    "suffixes, quoted globs) into this folder, mirroring the input tree. "
@@ -176,7 +194,7 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Batch: run on a dask.distributed cluster (tcp://host:8786) whose workers "
                    "see the same files (pip install mocapfill[dask]).")
-@click.option("--report", "report_path", type=click.Path(path_type=Path), default=None,
+@click.option("--report", "report_path", type=_OutputFile(), default=None,
               help="Batch: write FILE.json with every file's status, reason, gaps filled "
                    "and left, frames and seconds.")
 @click.option("--suffix", default=None, metavar=".c3d",
@@ -216,7 +234,7 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
                    "still serve as evidence.")
 @click.option("--exclude", multiple=True, metavar="NAME|GLOB",
               help="Never fill these markers (repeatable; globs).")
-@click.option("--gaps-report", type=click.Path(path_type=Path), default=None,
+@click.option("--gaps-report", type=_OutputFile(), default=None,
               help="One file: write one row per gap (marker, first/last frame, length in "
                    "frames and seconds, method, status) to FILE.csv or FILE.json.")
 @click.option("--max-jump", "max_jump_mm", type=float, default=None, metavar="MM",
@@ -243,6 +261,7 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
     """
     from .pipeline import RepairOptions
 
+    raw, paths = paths, tuple(Path(p) for p in paths)
     solver_options = _solver_options(rank=rank, lam=lam, mu=mu, rho=rho, eta0=eta0, tol=tol,
                                      max_iter=max_iter)
 
@@ -261,6 +280,10 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
         return
     _refuse_batch_options(paths, force=force, jobs=jobs, scheduler=scheduler,
                           report=report_path, suffix=suffix)
+    if _names_a_folder(raw[-1]):
+        raise click.BadParameter(f"{raw[-1]!r} ends with '{raw[-1][-1]}': name a file to "
+                                 "write (a folder of outputs is `repair IN... -o OUTDIR`)",
+                                 param_hint="'OUT'")
     in_path, out_path = paths
     from . import formats
     from .pipeline import repair as run_repair
@@ -446,7 +469,7 @@ def _solver_options(**values) -> dict:
 
 @main.command()
 @click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
-@click.argument("out_path", metavar="OUT", type=click.Path(path_type=Path))
+@click.argument("out_path", metavar="OUT", type=_OutputFile())
 @click.option("--mr", type=float, default=None,
               help="Random missing: fraction in [0, 1) of the markers removed in every frame.")
 @click.option("--ml", type=int, default=None,
@@ -585,7 +608,7 @@ def info(in_path: Path, repaired_path: Path | None, as_json: bool, gaps_only: bo
 @click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
 @click.argument("repaired_path", metavar="[REPAIRED]", required=False,
                 type=click.Path(path_type=Path))
-@click.option("-o", "--output", "out_path", required=True, type=click.Path(path_type=Path),
+@click.option("-o", "--output", "out_path", required=True, type=_OutputFile(),
               help="Image to write: FILE.png, FILE.svg or FILE.html.")
 @click.option("--markers", multiple=True, metavar="NAME|GLOB",
               help="Markers to draw (repeatable; globs). Default: up to 8 with the most "
@@ -610,7 +633,7 @@ def plot(in_path: Path, repaired_path: Path | None, out_path: Path, markers: tup
 
 @main.command()
 @click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
-@click.argument("out_path", metavar="OUT", type=click.Path(path_type=Path))
+@click.argument("out_path", metavar="OUT", type=_OutputFile())
 @_zero_option
 def convert(in_path: Path, out_path: Path, zero_is_missing: str) -> None:
     """Convert IN to OUT's format (by suffix), keeping gaps as gaps."""
@@ -636,7 +659,7 @@ def bench() -> None:
 @click.option("--quick", is_flag=True,
               help="Skip the 30-minute and 300-marker synthetic clips.")
 @click.option("--no-compare", is_flag=True, help="Skip the trnn-paper and tsmc runs.")
-@click.option("--json", "json_path", type=click.Path(path_type=Path), default=None,
+@click.option("--json", "json_path", type=_OutputFile(), default=None,
               help="Also write the rows to FILE.json.")
 def bench_speed(runs: int, quick: bool, no_compare: bool, json_path: Path | None) -> None:
     """Wall time (s) of `mocapfill repair` per case, iterations, ms per iteration against
@@ -654,7 +677,7 @@ def bench_speed(runs: int, quick: bool, no_compare: bool, json_path: Path | None
               help="WalkL_0001 and 85_02 (mr 0.4, ml 40), one seed, instead of all cases.")
 @click.option("--methods", default=None, metavar="A,B,...",
               help="Comma-separated methods (default: all but svt, which takes minutes).")
-@click.option("--json", "json_path", type=click.Path(path_type=Path), default=None,
+@click.option("--json", "json_path", type=_OutputFile(), default=None,
               help="Also write the rows to FILE.json.")
 @click.option("--plots", "plots_dir", type=click.Path(path_type=Path, file_okay=False),
               default=None, help="Write bar charts into DIR (needs matplotlib).")
@@ -685,7 +708,7 @@ def bench_accuracy(quick: bool, methods: str | None, json_path: Path | None,
 @click.option("--quick", is_flag=True,
               help="A small grid and one seed (about a minute) instead of the full run "
                    "(about 20 minutes on 2 cores).")
-@click.option("--output", "markdown_path", type=click.Path(path_type=Path), default=None,
+@click.option("--output", "markdown_path", type=_OutputFile(), default=None,
               help="Also write the markdown report to FILE.md.")
 def bench_paper(plots_dir: Path | None, quick: bool, markdown_path: Path | None) -> None:
     """Reproduce the paper's Figs. 2-6: synthetic NRE/time against IALM and PSVT, rank

@@ -294,3 +294,21 @@ def test_plot_info_and_score_agree_on_a_repaired_file_that_does_not_match(clip_f
         result = run(*command)
         assert result.exit_code == 123, command[0]
         assert "other.npz" in result.stderr and len(result.stderr.splitlines()) == 1
+
+
+@pytest.mark.parametrize("args", [
+    ["repair", "gapped.npz", "out.npz/"],
+    ["convert", "gapped.npz", "out.csv/"],
+    ["simulate", "truth.npz", "out.npz/", "--ml", "10"],
+    ["plot", "gapped.npz", "-o", "out.png/"],
+    ["repair", "gapped.npz", "o.npz", "--gaps-report", "out.csv/"],
+])
+def test_an_output_name_ending_in_a_slash_is_a_usage_error_not_a_file(clip_files, monkeypatch,
+                                                                      args):
+    # pathlib drops the slash: `-o plots/` used to write a file called "plots".
+    monkeypatch.chdir(clip_files)
+    before = sorted(p.name for p in clip_files.iterdir())
+    result = run(*args)
+    assert result.exit_code == 2, result.output
+    assert result.stderr.count("\n") == 1 and "ends with '/'" in result.stderr
+    assert sorted(p.name for p in clip_files.iterdir()) == before
