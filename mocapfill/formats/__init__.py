@@ -122,8 +122,14 @@ def write(motion: Motion, path: str | os.PathLike, **options) -> None:
         raise FormatError(path, f"output folder {directory} does not exist")
     tmp = None
     try:
+        # Files a written file needs beside it to be read back (an AMC's skeleton): checked
+        # before writing, put in place after.
+        companions = getattr(module, "companions", None)
+        after = companions(motion, path) if companions is not None else None
         with atomic_output(path) as tmp:
             module.write(motion, Path(tmp), **options)
+        if after is not None:
+            after()
     except FormatError as exc:
         # The module saw only the temporary name, or named no file at all.
         if exc.path is None or (tmp is not None and exc.path == tmp):

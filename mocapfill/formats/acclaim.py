@@ -42,6 +42,13 @@ like the CMU files; made missing: ``nan``). A filled cell whose bone line was ab
 its frame gets a new line at the end of that frame. When the last frame changes and the
 file ended inside one of its bone lines, that line is written whole (its unread values
 as ``nan`` unless filled) with a line ending, so the output reads back as written.
+
+An AMC holds joint angles only and is read with the ``.asf`` found beside it, so when the
+output's folder holds no ``.asf`` the reader would pick, the input's skeleton is copied
+there unchanged, under its own name (a repair or a batch into another folder used to give
+AMC files that could not be read back). An ``.asf`` there that the reader would pick but
+that differs from the input's is refused before anything is written: the output would be
+read with the wrong skeleton.
 """
 from __future__ import annotations
 
@@ -460,6 +467,37 @@ def _source(motion: Motion, path: Path | None = None) -> AmcSource:
         raise FormatError(path, "AMC output needs an AMC input (positions cannot be turned "
                                 "into joint angles); write .c3d/.trc/.csv instead")
     return motion.source
+
+
+def companions(motion: Motion, path: Path):
+    """Before an AMC is written to ``path``: check the skeleton it will be read with.
+
+    Returns None when the ``.asf`` the reader finds beside ``path`` is the input's (same
+    file or same bytes), else the function that copies the input's skeleton there once the
+    AMC is written. Raises FormatError (naming ``path``) when the reader would find a
+    different skeleton there.
+    """
+    source = _source(motion, path)
+    try:
+        found = find_asf(path)
+    except FormatError:
+        found = None
+    if found is not None:
+        if found.resolve() == source.asf_path.resolve() or \
+                found.read_bytes() == source.asf_path.read_bytes():
+            return None
+        raise FormatError(path, f"its folder already holds {found.name}, which differs from "
+                                f"the input's skeleton ({source.asf_path}) and would be read "
+                                "with it; write to another folder")
+    target = path.parent / source.asf_path.name
+
+    def copy() -> None:
+        from . import atomic_output
+
+        # Atomic, like every output: parallel batch workers may copy the same skeleton.
+        with atomic_output(target, mode_from=source.asf_path) as tmp:
+            Path(tmp).write_bytes(source.asf_path.read_bytes())
+    return copy
 
 
 def channels(motion: Motion) -> tuple[np.ndarray, np.ndarray]:

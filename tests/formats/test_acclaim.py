@@ -430,3 +430,35 @@ def test_cmu_09_12_amc_reads_with_the_subject_asf():
     motion = acclaim.read(shared_file("cmu/09_12.amc"))
     assert motion.n_frames == 1918 and motion.observed.all()
     assert motion.source.asf_path.name == "09.asf"
+
+
+# ----------------------------------------------------------------------- the skeleton beside
+
+def test_an_amc_written_to_another_folder_gets_its_skeleton_and_reads_back(tmp_path):
+    from mocapfill import formats
+
+    (tmp_path / "in").mkdir()
+    (tmp_path / "out").mkdir()
+    motion = acclaim.read(write_pair(tmp_path / "in", [frame(1), frame(2, arm="10")],
+                                     asf_name="tiny.asf"))
+    formats.write(motion, tmp_path / "out" / "copy_01.amc")
+    assert (tmp_path / "out" / "tiny.asf").read_bytes() == (tmp_path / "in" / "tiny.asf"
+                                                            ).read_bytes()
+    back = formats.read(tmp_path / "out" / "copy_01.amc")
+    np.testing.assert_array_equal(back.positions, motion.positions)
+    # A second output there finds it: nothing is copied again or refused.
+    formats.write(motion, tmp_path / "out" / "copy_02.amc")
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        "copy_01.amc", "copy_02.amc", "tiny.asf"]
+
+
+def test_a_different_skeleton_in_the_output_folder_is_refused_before_writing(tmp_path):
+    from mocapfill import formats
+
+    (tmp_path / "in").mkdir()
+    (tmp_path / "out").mkdir()
+    motion = acclaim.read(write_pair(tmp_path / "in", [frame(1)], asf_name="tiny.asf"))
+    (tmp_path / "out" / "tiny.asf").write_text(ASF.replace("length 3", "length 4", 1))
+    with pytest.raises(FormatError, match="differs from the input's skeleton"):
+        formats.write(motion, tmp_path / "out" / "copy_01.amc")
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["tiny.asf"]
