@@ -111,21 +111,22 @@ def main() -> None:
 # ---------------------------------------------------------------- shared option helpers
 
 
-def _names_a_folder(value: str) -> bool:
-    return value.endswith(("/", os.sep))
+def _refuse_folder_name(value, param=None, ctx=None, param_hint=None) -> None:
+    """A file to write named with a trailing '/' is a usage error (exit 2): pathlib drops
+    the slash, so ``-o plots/`` used to write a file called ``plots``."""
+    if isinstance(value, str) and value.endswith(("/", os.sep)):
+        raise click.BadParameter(f"{value!r} ends with '{value[-1]}': name a file to write, "
+                                 "not a folder", ctx=ctx, param=param, param_hint=param_hint)
 
 
 class _OutputFile(click.Path):
-    """A file the command writes. A name ending in '/' is refused (exit 2): pathlib drops
-    the slash, so ``-o plots/`` used to write a file called ``plots``."""
+    """A file the command writes (see :func:`_refuse_folder_name`)."""
 
     def __init__(self) -> None:
         super().__init__(path_type=Path)
 
     def convert(self, value, param, ctx):
-        if isinstance(value, str) and _names_a_folder(value):
-            self.fail(f"{value!r} ends with '{value[-1]}': name a file to write, not a folder",
-                      param, ctx)
+        _refuse_folder_name(value, param, ctx)
         return super().convert(value, param, ctx)
 
 
@@ -280,10 +281,7 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
         return
     _refuse_batch_options(paths, force=force, jobs=jobs, scheduler=scheduler,
                           report=report_path, suffix=suffix)
-    if _names_a_folder(raw[-1]):
-        raise click.BadParameter(f"{raw[-1]!r} ends with '{raw[-1][-1]}': name a file to "
-                                 "write (a folder of outputs is `repair IN... -o OUTDIR`)",
-                                 param_hint="'OUT'")
+    _refuse_folder_name(raw[-1], param_hint="'OUT'")
     in_path, out_path = paths
     from . import formats
     from .pipeline import repair as run_repair
