@@ -45,10 +45,11 @@ as ``nan`` unless filled) with a line ending, so the output reads back as writte
 
 An AMC holds joint angles only and is read with the ``.asf`` found beside it, so when the
 output's folder holds no ``.asf`` the reader would pick, the input's skeleton is copied
-there unchanged, under its own name (a repair or a batch into another folder used to give
-AMC files that could not be read back). An ``.asf`` there that the reader would pick but
-that differs from the input's is refused before anything is written: the output would be
-read with the wrong skeleton.
+there unchanged, under its own name, or under the output's stem where that name is taken
+(no file is ever replaced). A repair or a batch into another folder used to give AMC files
+that could not be read back. An ``.asf`` there that the reader would pick but that differs
+from the input's is refused before anything is written: the output would be read with the
+wrong skeleton.
 """
 from __future__ import annotations
 
@@ -490,6 +491,11 @@ def companions(motion: Motion, path: Path):
                                 f"the input's skeleton ({source.asf_path}) and would be read "
                                 "with it; write to another folder")
     target = path.parent / source.asf_path.name
+    if target.exists():
+        # A file of that name the reader would not pick for this output (other .asf files
+        # beside it), maybe the input's own skeleton: never replaced; the copy takes the
+        # output's stem, the first name the reader tries.
+        target = path.parent / f"{path.stem}.asf"
 
     def copy() -> None:
         from . import atomic_output

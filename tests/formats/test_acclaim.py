@@ -462,3 +462,20 @@ def test_a_different_skeleton_in_the_output_folder_is_refused_before_writing(tmp
     with pytest.raises(FormatError, match="differs from the input's skeleton"):
         formats.write(motion, tmp_path / "out" / "copy_01.amc")
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["tiny.asf"]
+
+
+def test_the_copy_never_replaces_an_asf_and_takes_the_outputs_stem_instead(tmp_path):
+    # Two skeletons in the input folder: an output there finds neither by name, and the
+    # input's own tiny.asf must not be rewritten (even with the same bytes).
+    from mocapfill import formats
+
+    motion = acclaim.read(write_pair(tmp_path, [frame(1), frame(2, arm="10")],
+                                     asf_name="tiny.asf"))
+    (tmp_path / "other.asf").write_text(ASF.replace("length 3", "length 4", 1))
+    before = (tmp_path / "tiny.asf").stat()
+    formats.write(motion, tmp_path / "copy_02.amc")
+    after = (tmp_path / "tiny.asf").stat()
+    assert (after.st_ino, after.st_mtime_ns) == (before.st_ino, before.st_mtime_ns)
+    assert (tmp_path / "copy_02.asf").read_bytes() == (tmp_path / "tiny.asf").read_bytes()
+    np.testing.assert_array_equal(formats.read(tmp_path / "copy_02.amc").positions,
+                                  motion.positions)
