@@ -32,7 +32,7 @@ from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
-from .errors import FormatError, MocapfillError, NothingToRepair, ParameterError
+from .errors import FormatError, MocapfillError, NothingToRepair, ParameterError, named
 
 REPAIRED = "repaired"
 UNCHANGED = "unchanged"
@@ -431,8 +431,9 @@ def repair_file(job: FileJob) -> FileRecord:
 
 
 def _problem(exc: Exception, path) -> str:
-    """The error's message without the ``PATH: `` it starts with (the record names the file)."""
-    message, prefix = str(exc), f"{path}: "
+    """The error's message without the ``named(path)`` it starts with (the record names
+    the file)."""
+    message, prefix = str(exc), named(path)
     return message[len(prefix):] if message.startswith(prefix) else message
 
 

@@ -29,7 +29,7 @@ import numpy as np
 
 Interpolant = Callable[[np.ndarray], np.ndarray]
 
-_END_CONDITIONS = ("not-a-knot", "natural", "clamped")
+END_CONDITIONS = ("not-a-knot", "natural", "clamped")
 
 
 def _columns(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple]:
@@ -67,8 +67,8 @@ def cubic_spline(x: np.ndarray, y: np.ndarray, bc_type: str = "not-a-knot") -> I
     """
     from scipy.linalg import solve_banded
 
-    if bc_type not in _END_CONDITIONS:
-        raise ValueError(f"bc_type must be one of {_END_CONDITIONS}, got {bc_type!r}")
+    if bc_type not in END_CONDITIONS:
+        raise ValueError(f"bc_type must be one of {END_CONDITIONS}, got {bc_type!r}")
     x, y, shape = _columns(x, y)
     n = x.size
     if n < (4 if bc_type == "not-a-knot" else 2):

@@ -676,8 +676,6 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     if prior_w.sum() > 0:
         prior_w = prior_w / prior_w.sum()
     out = np.where(observed, matrix, fills[names.index(default)])
-    # Gaps sharing one weight vector are blended together (random loss gives tens of
-    # thousands of gaps, most of them sharing their length class's weights).
     gap_weights = []
     long_gaps: dict[int, list[int]] = {}    # length -> gaps of MIN_MODEL_GAP frames or more
     for index, (_, a, b) in enumerate(gapset.gaps):
@@ -700,6 +698,8 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         kept = _without_outliers(np.array([gap_weights[i] for i in indices]), segments)
         for i, w in zip(indices, kept):
             gap_weights[i] = w
+    # Gaps sharing one weight vector are blended together (random loss gives tens of
+    # thousands of gaps, most of them sharing their length class's weights).
     shared: dict[bytes, tuple[np.ndarray, list[int]]] = {}
     for index, w in enumerate(gap_weights):
         shared.setdefault(w.tobytes(), (w, []))[1].append(index)

@@ -92,7 +92,8 @@ def spline(matrix: np.ndarray, observed: np.ndarray, *, bc_type: str = "not-a-kn
     rate, seed
         Shared pipeline options, ignored.
     """
-    if bc_type not in ("not-a-knot", "natural", "clamped"):
+    # Checked here too: rows with under 4 samples never reach the spline.
+    if bc_type not in _splines.END_CONDITIONS:
         raise ValueError(f"bc_type must be 'not-a-knot', 'natural' or 'clamped', got {bc_type!r}")
 
     return _interpolate(matrix, observed, partial(cubic_interpolant, bc_type=bc_type))
