@@ -233,6 +233,47 @@ def test_iteration_equals_the_textbook_updates():
     np.testing.assert_allclose(result.S, S_ref, atol=1e-8, rtol=0)
 
 
+def test_iteration_falls_back_to_the_explicit_v_step_on_rank_deficient_factors(monkeypatch):
+    # Exactly rank-1 data with r = 3: the Gram route of the V step, (U L) RᵀR (U L)ᵀ,
+    # is singular, and the loop must take the explicit n × r argument (SVD) instead.
+    import mocapfill.solvers.trnn as module
+
+    explicit = []
+    original = module._orthonormal_maximiser
+
+    def counting(G):
+        if G.shape[0] == 50:                # the V step's n × r argument
+            explicit.append(G.shape)
+        return original(G)
+
+    monkeypatch.setattr(module, "_orthonormal_maximiser", counting)
+    rng = np.random.default_rng(3)
+    D = np.outer(rng.normal(size=12), rng.normal(size=50))
+    observed = np.ones_like(D, dtype=bool)
+    kwargs = dict(rank=3, lam=0.3, mu=5.0, rho=1.3, eta0=0.5)
+    X_ref, _ = _textbook_trnn(D, observed, iterations=8, **kwargs)
+    result = trnn(D, observed, max_iter=8, tol=0.0, **kwargs)
+    assert len(explicit) == 8
+    # The null directions of a singular argument are arbitrary, in the SVD as anywhere.
+    np.testing.assert_allclose(result.X, X_ref, atol=1e-3 * np.abs(D).max(), rtol=0)
+
+
+def test_times_spd_inverse_matches_the_product_with_the_inverse():
+    from mocapfill.solvers._linalg import times_spd_inverse
+
+    rng = np.random.default_rng(9)
+    G = rng.normal(size=(40, 9))
+    A = np.eye(9) + 2.0 * G.T @ G
+    B = rng.normal(size=(5, 9))
+    for dtype, tol in ((np.float64, 1e-10), (np.float32, 1e-4)):
+        product = times_spd_inverse(B.astype(dtype), A.astype(dtype))
+        assert product.dtype == dtype
+        np.testing.assert_allclose(product @ A, B, atol=tol * np.abs(B).max())
+    indefinite = np.diag([1.0, -2.0, 3.0])
+    np.testing.assert_allclose(times_spd_inverse(B[:, :3], indefinite),
+                               B[:, :3] @ np.linalg.inv(indefinite))
+
+
 def test_iteration_stops_at_the_first_iterate_meeting_both_criteria():
     # The loop judges the constraint residual only once the change of X is small enough;
     # it must still stop exactly where the textbook iteration first meets both. Here the
