@@ -10,6 +10,7 @@ Latin-1 path in a TRC header, say) survive the round trip unchanged.
 """
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -260,7 +261,8 @@ def parse_markers(path: Path, lines: Sequence[str], row_lines: np.ndarray,
     positions, observed
         (frames, markers, 3) with NaN at missing samples, and (frames, markers) bool.
         A sample is missing when any of its cells is missing, or absent or cut short in a
-        row the file ends inside (see :func:`row_cells`).
+        row the file ends inside (see :func:`row_cells`); a repair fills its missing cells
+        and keeps the others (:func:`patched_lines`).
     """
     n_frames, n_markers = len(row_lines), len(columns)
     flat = columns.reshape(-1).tolist()
@@ -434,10 +436,11 @@ def patched_lines(source: TextSource, motion: Motion,
     """The original lines with the cells of samples whose observed state changed.
 
     Samples missing in the file and observed in ``motion`` are written with the column's
-    own precision; samples the file holds but the Motion marks missing (gaps added by
-    ``simulate``) are blanked with the file's own missing token (the first one found in
-    its rows, else an empty cell). The values of samples observed in both are never
-    rewritten.
+    own precision, their missing cells only: a coordinate the file holds for a partly
+    observed sample (a blank Y beside a number in X) is never rewritten. Samples the
+    file holds but the Motion marks missing (gaps added by ``simulate``) are blanked with
+    the file's own missing token (the first one found in its rows, else an empty cell).
+    The values of samples observed in both are never rewritten.
 
     Parameters
     ----------
@@ -474,6 +477,8 @@ def patched_lines(source: TextSource, motion: Motion,
                 continue
             for axis in range(3):
                 c = int(source.columns[m, axis])
+                if not (index == cut_row and c == cut_cell) and _holds_value(cells, c):
+                    continue    # an observed cell of a partly observed sample: kept
                 _set_cell(cells, c, styles[c].format(motion.positions[f, m, axis]))
             if source.w_columns is not None and source.w_columns[m] >= 0:
                 w = int(source.w_columns[m])
@@ -507,6 +512,16 @@ def missing_token(source: TextSource) -> str:
                 if text.lower() in MISSING_TOKENS:
                     return text
     return ""
+
+
+def _holds_value(cells: list[str], index: int) -> bool:
+    """Whether a row's cell holds a finite number (an observed coordinate)."""
+    if index >= len(cells):
+        return False
+    try:
+        return math.isfinite(parse_number(cell_text(cells[index])))
+    except ValueError:
+        return False
 
 
 def _set_cell(cells: list[str], index: int, text: str) -> None:

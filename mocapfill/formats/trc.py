@@ -45,16 +45,17 @@ Units: ``Units``, else the ``units=`` option, else mm. ``first_frame``: the firs
 ``Frame#`` value, else ``OrigDataStartFrame``, else 1.
 
 Writing: a Motion read from a TRC file (and still holding its frames and labels) is
-written as a patched copy: only the cells of samples that were missing and are now
-observed change, printed with the largest number of decimals that column's observed
-cells use (``decimals=`` overrides). Any other Motion is written in exactly the layout
-OpenSim's ``TRCFileAdapter`` writes: tab-delimited, ``PathFileType\\t4\\t(X/Y/Z)\\t<name>``,
-the 8 header keys and their values, each marker name followed by three tabs, ``X1 Y1 Z1``
-... numbered from 1, a blank line, then rows whose cells are each followed by a tab;
-``Frame#`` counts from ``first_frame`` (= ``OrigDataStartFrame``), time from 0, missing
-samples are empty cells, coordinates the shortest text that reads back exactly. A clip
-without a rate (0 Hz, a C3D with no ``POINT:RATE``) is written at 120 Hz; a clip without
-markers is refused.
+written as a patched copy: only the missing cells of samples that were missing and are
+now observed change (a number beside a blank cell stays as it is), printed with the
+largest number of decimals that column's observed cells use (``decimals=`` overrides).
+Any other Motion is written in exactly the layout OpenSim's ``TRCFileAdapter`` writes:
+tab-delimited, ``PathFileType\\t4\\t(X/Y/Z)\\t<name>``, the 8 header keys and their
+values, each marker name followed by three tabs, ``X1 Y1 Z1`` ... numbered from 1, a
+blank line, then rows whose cells are each followed by a tab; ``Frame#`` counts from
+``first_frame`` (= ``OrigDataStartFrame``), time from 0, missing samples are empty
+cells, coordinates the shortest text that reads back exactly. A clip without a rate (0
+Hz, a C3D with no ``POINT:RATE``) is written at 120 Hz; a clip without markers is
+refused.
 
 Marker names in a new file have the characters OpenSim rejects in component names
 (whitespace, ``\\``, ``/``, ``*``, ``+``) replaced by ``_``: a TRC is written for OpenSim,

@@ -12,7 +12,14 @@ from hypothesis import strategies as st
 from mocapfill import formats
 from mocapfill.errors import FormatError
 from mocapfill.formats import csv as csvfmt
-from mocapfill.formats._text import read_lines, split_cells, split_ending
+from mocapfill.formats._text import (
+    cell_text,
+    parse_number,
+    read_lines,
+    row_cells,
+    split_cells,
+    split_ending,
+)
 from mocapfill.motion import Motion
 from tests.conftest import shared_file, shared_files
 
@@ -45,13 +52,23 @@ def printed_resolution(text: str) -> float:
 
 
 def assert_patch_invariant(original: Motion, repaired: Motion, out: Path) -> None:
-    """Lines without a filled cell are identical; in the others only filled cells differ;
-    reading the output back gives the filled values to the precision they were printed."""
+    """Lines without a filled cell are identical; in the others only the missing cells of
+    filled samples differ (the numbers of a partly observed sample stay); reading the
+    output back gives the filled values to the precision they were printed."""
     source = original.source
     filled = repaired.observed & ~original.observed
     expected: dict[int, set[int]] = {}
+    kept: dict[tuple[int, int], float] = {}         # (row, cell) -> the value it holds
     for f, m in zip(*np.nonzero(filled)):
-        cells = set(source.columns[m].tolist())
+        index = int(source.row_lines[f])
+        readable = row_cells(source.lines, index, source.delimiter)[0]
+        cells = set()
+        for c in source.columns[m].tolist():
+            value = float(parse_number(cell_text(readable[c]))) if c < len(readable) else np.nan
+            if np.isfinite(value):
+                kept[index, c] = value
+            else:
+                cells.add(c)
         if source.w_columns is not None and source.w_columns[m] >= 0:
             cells.add(int(source.w_columns[m]))
         expected.setdefault(int(source.row_lines[f]), set()).update(cells)
@@ -80,7 +97,11 @@ def assert_patch_invariant(original: Motion, repaired: Motion, out: Path) -> Non
             rows[index] = split_cells(split_ending(new_lines[index])[0], source.delimiter)
         row = rows[index]
         for axis in range(3):
-            text = row[source.columns[m, axis]]
+            c = int(source.columns[m, axis])
+            if (index, c) in kept:
+                assert back.positions[f, m, axis] == kept[index, c]
+                continue
+            text = row[c]
             value = repaired.positions[f, m, axis]
             error = abs(back.positions[f, m, axis] - value)
             assert error <= printed_resolution(text) + 8 * np.spacing(abs(value)), text
@@ -254,6 +275,25 @@ def test_patch_changes_only_filled_cells(tmp_path):
     assert lines[:2] + lines[3:] == PLAIN.split("\n")[:2] + PLAIN.split("\n")[3:]
     assert lines[2] == "2,0.01,1.6,2.6,3.6,10.50,20.50,30.50"   # the column's 2 decimals
     assert_patch_invariant(original, repaired, out)
+
+
+def test_patch_keeps_the_observed_cells_of_a_partly_observed_sample(tmp_path):
+    # A blank Y makes the sample missing, but X and Z are observations: only Y is filled.
+    text = PLAIN.replace("1.6,2.6,3.6,,,", "1.6,2.6,3.6,10.9,,30.1")
+    original = csvfmt.read(write_text(tmp_path, text))
+    assert original.observed[1].tolist() == [True, False]
+    out = tmp_path / "out.csv"
+    csvfmt.write(fill_by_interp(original), out)
+    assert out.read_text() == text.replace(",10.9,,30.1", ",10.9,20.50,30.1")
+
+
+def test_patch_rewrites_the_unread_cut_cell_of_a_partly_observed_sample(tmp_path):
+    # The file ends inside its last row: "8" may be "8.25" cut short, so it is filled.
+    path = write_text(tmp_path, "A_X,A_Y,A_Z\n1,2,3\n5,6,7\n7,,8")
+    original = csvfmt.read(path)
+    out = tmp_path / "out.csv"
+    csvfmt.write(fill_by_interp(original), out)           # held at 5, 6, 7
+    assert out.read_text() == "A_X,A_Y,A_Z\n1,2,3\n5,6,7\n7,6,7,"
 
 
 def test_patch_leaves_still_missing_samples_with_the_files_missing_token(tmp_path):
@@ -573,7 +613,8 @@ def test_patch_of_the_row_a_file_ends_inside_reads_back_as_written(tmp_path):
     out = tmp_path / "out.csv"
     csvfmt.write(repaired, out)
     assert_patch_invariant(original, repaired, out)
-    assert out.read_text() == head + "1,2,3,4,5,6\n1,2,3,4,5,6,"    # still no final ending
+    # B's 5 and 6 in the last row are observed cells, kept; its unread 7 is filled.
+    assert out.read_text() == head + "1,2,3,4,5,6\n1,2,3,5,6,6,"    # still no final ending
 
 
 def test_patch_of_the_row_a_file_ends_inside_blanks_its_unread_last_cell(tmp_path):

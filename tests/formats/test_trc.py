@@ -201,6 +201,18 @@ def test_patch_changes_only_filled_cells(tmp_path):
     assert out.read_bytes() == expected
 
 
+def test_patch_keeps_the_observed_cells_of_a_partly_observed_sample(tmp_path):
+    rows = [ROWS[0], ROWS[1].replace("3.600\t\t\t", "3.600\t\t20.125\t"), ROWS[2]]
+    path = write_text(tmp_path, trc_text(rows, end="\r\n"), "a.trc")
+    original = trc.read(path)
+    assert original.observed[1].tolist() == [True, False]
+    out = tmp_path / "out.trc"
+    trc.write(fill_by_interp(original), out)
+    expected = path.read_bytes().replace(b"3.600\t\t20.125\t\r",
+                                         b"3.600\t10.500\t20.125\t30.500\r")
+    assert out.read_bytes() == expected
+
+
 def test_patch_pads_the_short_row_a_file_ends_inside(tmp_path):
     rows = [ROWS[0], ROWS[2].replace("3\t0.02", "2\t0.01"), "3\t0.02\t1.800\t2.800\t3.800\t"]
     original = trc.read(write_text(tmp_path, trc_text(rows).removesuffix("\n"), "a.trc"))
