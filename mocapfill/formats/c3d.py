@@ -12,7 +12,11 @@ types: 84 Intel, 85 DEC, 86 MIPS/SGI), and the point block is read in one vector
 ``np.frombuffer`` over the data section, frame stride = (4 words per point + analog words
 per frame). Every count taken from the header or parameters is checked against the file
 size before anything is allocated, so a forged count gives a one-line ``FormatError``,
-never a huge allocation.
+never a huge allocation. Frames are counted from the header's first and last frame
+words; where the last is 65535 (the most 16 bits hold: a clip longer than that, or one
+numbered past it), POINT:LONG_FRAMES or TRIAL:ACTUAL_START_FIELD/ACTUAL_END_FIELD (32-bit
+frame numbers) count them, as Vicon writes them, and TRIAL's start gives a first frame
+past 65535.
 
 A sample is missing when its fourth word (residual) is negative or any coordinate is not
 finite. ``zero_is_missing`` adds exact (0, 0, 0) samples (all three coordinates, never
@@ -35,7 +39,8 @@ original bytes and overwrites, for each sample that was missing and is now obser
 four words of that sample: x, y, z in the file's own processor format and storage, and
 word 4 = 0 (residual 0 = "computed, not measured" per c3d.org). Header, parameters,
 analog samples, events and every other sample stay byte-identical. Any other Motion is
-written as a new Intel float C3D.
+written as a new Intel float C3D, its frame numbers in TRIAL:ACTUAL_START_FIELD and
+ACTUAL_END_FIELD too (the header's words hold 65535 for a frame number past it).
 """
 from __future__ import annotations
 
@@ -287,7 +292,7 @@ def _layout(path: Path, data: bytes) -> _Layout:
         raise FormatError(path, f"truncated: {available} of {n_frames} frames present")
     frame_stride = max(fitting)
     return _Layout(processor, params, n_points, n_frames, scale < 0, abs(scale), data_start,
-                   frame_stride, rate, int(uint[3]))
+                   frame_stride, rate, _first_frame(params, processor, uint))
 
 
 def _analog_words(params: dict[str, dict[str, _Param]], processor: str, header: np.ndarray,
@@ -305,23 +310,44 @@ def _analog_words(params: dict[str, dict[str, _Param]], processor: str, header: 
     return candidates
 
 
+def _trial_field(trial: dict[str, _Param], name: str, processor: str) -> int | None:
+    """TRIAL:ACTUAL_START_FIELD or ACTUAL_END_FIELD: a frame number as two 16-bit words."""
+    words = _numbers(trial.get(name), processor)
+    if words.size != 2 or not np.isfinite(words).all():
+        return None
+    low, high = (words.astype(np.int64) & 0xFFFF).tolist()
+    return low + (high << 16)
+
+
 def _frame_count(params: dict[str, dict[str, _Param]], processor: str,
                  header: np.ndarray) -> int | None:
-    """Frames in the trial: the header's count, or a longer parameter past 65535 frames."""
+    """Frames in the trial: the header's count, or the parameters' where the header's last
+    frame word is full (0xFFFF: a clip longer than 65535 frames, or one numbered past
+    frame 65535) and they count more."""
     count = int(header[4]) - int(header[3]) + 1
     point, trial = params.get("POINT", {}), params.get("TRIAL", {})
-    longer = list(_numbers(point.get("LONG_FRAMES"), processor)[:1])
-    start = _numbers(trial.get("ACTUAL_START_FIELD"), processor).astype(np.int64) & 0xFFFF
-    end = _numbers(trial.get("ACTUAL_END_FIELD"), processor).astype(np.int64) & 0xFFFF
-    if start.size == 2 and end.size == 2:
-        longer.append(int(end[0] + (end[1] << 16)) - int(start[0] + (start[1] << 16)) + 1)
-    longer = [int(n) for n in longer if np.isfinite(n) and n > 65535]
-    if longer and (header[4] == 0xFFFF or count <= 0):
-        return max(longer)
+    counts = [float(n) for n in _numbers(point.get("LONG_FRAMES"), processor)[:1]]
+    start = _trial_field(trial, "ACTUAL_START_FIELD", processor)
+    end = _trial_field(trial, "ACTUAL_END_FIELD", processor)
+    if start is not None and end is not None:
+        counts.append(end - start + 1)
+    counts = [int(n) for n in counts if np.isfinite(n) and n > 0]
+    if header[4] == 0xFFFF and counts and max(counts) > count:
+        return max(counts)
     if count <= 0:
+        longer = [n for n in counts if n > 65535]
+        if longer:
+            return max(longer)
         frames = _numbers(point.get("FRAMES"), processor)
         return int(frames[0]) & 0xFFFF if frames.size and frames[0] != 0 else None
     return count
+
+
+def _first_frame(params: dict[str, dict[str, _Param]], processor: str,
+                 header: np.ndarray) -> int:
+    """The first frame's number: the header's, or TRIAL:ACTUAL_START_FIELD's past 65535."""
+    start = _trial_field(params.get("TRIAL", {}), "ACTUAL_START_FIELD", processor)
+    return start if start is not None and start > 0xFFFF else int(header[3])
 
 
 def _labels(point: dict[str, _Param], n_points: int) -> list[str]:
@@ -550,7 +576,9 @@ def _new_file(motion: Motion) -> bytes:
         raise FormatError(None, f"{n_markers} markers do not fit one C3D file (65535 at most)")
     finite = np.abs(motion.positions[motion.observed])
     scale = -(float(finite.max()) / 32000 if finite.size and finite.max() > 0 else 1.0)
-    first_frame = motion.first_frame if 1 <= motion.first_frame <= 0xFFFF else 1
+    # Frame numbers past 65535 live in TRIAL:ACTUAL_START_FIELD / ACTUAL_END_FIELD (two
+    # 16-bit words each); the header's 16-bit words then hold 65535.
+    first_frame = motion.first_frame if 1 <= motion.first_frame <= 0xFFFFFFFF - n_frames else 1
     last_frame = first_frame + n_frames - 1
     labels = list(motion.labels)
     chunks = [labels[i:i + 255] for i in range(0, max(n_markers, 1), 255)]
@@ -573,7 +601,8 @@ def _new_file(motion: Motion) -> bytes:
                _number_param(2, "RATE", [motion.rate], True),
                _number_param(2, "GEN_SCALE", [1.0], True),
                _group_entry(3, "TRIAL"),
-               _number_param(3, "ACTUAL_START_FIELD", [first_frame, 0], False),
+               _number_param(3, "ACTUAL_START_FIELD", [first_frame & 0xFFFF,
+                                                        first_frame >> 16], False),
                _number_param(3, "ACTUAL_END_FIELD", [last_frame & 0xFFFF, last_frame >> 16],
                              False)]
     section_size = 4 + sum(len(p) for p in params) + 2
@@ -583,8 +612,9 @@ def _new_file(motion: Motion) -> bytes:
     section = (bytes([1, 0x50, n_blocks, 84]) + b"".join(params)).ljust(n_blocks * 512, b"\0")
 
     header = bytearray(512)
-    struct.pack_into("<BBHHHHHfHHf", header, 0, 2, 0x50, n_markers, 0, first_frame,
-                     min(last_frame, 0xFFFF), 0, scale, data_block, 1, motion.rate)
+    struct.pack_into("<BBHHHHHfHHf", header, 0, 2, 0x50, n_markers, 0,
+                     min(first_frame, 0xFFFF), min(last_frame, 0xFFFF), 0, scale, data_block,
+                     1, motion.rate)
     struct.pack_into("<H", header, 298, 0x3039)                  # 4-character event labels
 
     frames = np.zeros((n_frames, n_markers, 4), "<f4")

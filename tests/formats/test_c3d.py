@@ -371,6 +371,19 @@ def test_new_file_round_trips_through_our_reader(tmp_path):
     assert back.source.processor == "intel" and back.source.is_float
 
 
+@pytest.mark.parametrize("first_frame", [65_520, 70_000])
+def test_new_file_numbered_past_frame_65535_keeps_every_frame_and_its_number(tmp_path,
+                                                                             first_frame):
+    # The header's 16-bit frame words cannot hold these numbers; TRIAL's fields can.
+    motion = in_memory_motion(first_frame=first_frame)
+    out = tmp_path / "late.c3d"
+    c3d.write(motion, out)
+    back = c3d.read(out)
+    assert (back.n_frames, back.first_frame) == (30, first_frame)
+    np.testing.assert_array_equal(back.observed, motion.observed)
+    assert ezc3d_points(out).shape[0] == 30
+
+
 def test_new_file_stores_gaps_as_zero_with_residual_minus_one(tmp_path):
     out = tmp_path / "new.c3d"
     c3d.write(in_memory_motion(), out)
