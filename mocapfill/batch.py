@@ -373,6 +373,10 @@ def _options_for(job: FileJob, rate: float):
 
     options = job.options or RepairOptions()
     if job.max_gap_s is not None:
+        if not rate > 0:
+            raise ParameterError(f"{named(job.input)}the file states no frame rate, so "
+                                 f"--max-gap {job.max_gap_s:g}s has no length in frames; "
+                                 "give it in frames (40)")
         options = replace(options, max_gap_frames=round(job.max_gap_s * rate))
     if formats.same_skeleton_format(job.input, job.output):
         options = replace(options, space="channels")

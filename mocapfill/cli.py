@@ -144,9 +144,9 @@ def _read(path: Path, zero_is_missing: str = "auto"):
     return formats.read(path, **options)
 
 
-def _parse_max_gap(text: str | None, rate: float) -> int | None:
-    """'40' frames or '0.5s' seconds -> frames (None = unlimited)."""
-    from .errors import ParameterError
+def _parse_max_gap(text: str | None, rate: float, path: Path | None = None) -> int | None:
+    """'40' frames or '0.5s' seconds -> frames (None = unlimited); seconds need a rate."""
+    from .errors import ParameterError, named
 
     if text is None:
         return None
@@ -161,6 +161,9 @@ def _parse_max_gap(text: str | None, rate: float) -> int | None:
     except ValueError:
         raise ParameterError(f"--max-gap must be frames (40) or seconds (0.5s), got {text!r}") \
             from None
+    if raw.endswith("s") and not rate > 0:
+        raise ParameterError(f"{named(path)}the file states no frame rate, so --max-gap "
+                             f"{text} has no length in frames; give it in frames (40)")
     if not math.isfinite(frames) or frames < 0:
         raise ParameterError(f"--max-gap must be a finite number ≥ 0 (at this file's rate), "
                              f"got {text!r}")
@@ -298,7 +301,7 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
     from .pipeline import reporting_windows
 
     with _WindowProgress() as progress, reporting_windows(progress):
-        result = run_repair(motion, options(_parse_max_gap(max_gap, motion.rate), space))
+        result = run_repair(motion, options(_parse_max_gap(max_gap, motion.rate, in_path), space))
     formats.write(result.motion, out_path)
     if gaps_report is not None:
         from .report import write_gaps_report

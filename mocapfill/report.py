@@ -43,8 +43,10 @@ def format_info(motion: Motion, gaps_only: bool = False) -> str:
     rows = summarise(motion)
     width = max([6] + [len(r.label) for r in rows])
     total = int((~motion.observed).sum())
+    timing = (f"at {motion.rate:g} Hz ({motion.duration_s:.2f} s)" if motion.rate > 0
+              else "with no frame rate (0 Hz)")
     lines = [f"{motion.path or 'clip'}: {motion.n_markers} markers × {motion.n_frames} frames "
-             f"at {motion.rate:g} Hz ({motion.duration_s:.2f} s), units {motion.units}; "
+             f"{timing}, units {motion.units}; "
              f"{total}/{motion.observed.size} samples missing "
              f"({100 * total / max(motion.observed.size, 1):.1f}%)",
              *(f"note: {note}" for note in reader_notes(motion)),

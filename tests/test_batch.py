@@ -255,6 +255,24 @@ def test_repair_many_from_python(tree, tmp_path):
     assert report.frames == 21 * 240
 
 
+def test_max_gap_in_seconds_fails_a_file_without_rate_and_converts_at_each_files_rate(
+        tmp_path):
+    root = tmp_path / "data"
+    root.mkdir()
+    gapped = with_gap(smooth_clip(200, 4), 1, 100, 130)        # a 30-frame gap
+    formats.write(gapped.replace(rate=0.0), root / "norate.npz")
+    formats.write(gapped.replace(rate=100.0), root / "slow.npz")   # 0.3 s: filled
+    formats.write(gapped.replace(rate=50.0), root / "fast.npz")    # 0.6 s: left
+    report = mocapfill.repair_many([root], tmp_path / "out", jobs=1, max_gap_s=0.5,
+                                   options=RepairOptions(method="linear"))
+    records = {Path(r.input).name: r for r in report.records}
+    assert records["norate.npz"].status == "failed"
+    assert records["norate.npz"].reason.startswith("the file states no frame rate")
+    assert records["slow.npz"].status == "repaired"
+    assert formats.read(tmp_path / "out" / "slow.npz").observed.all()
+    assert not formats.read(tmp_path / "out" / "fast.npz").observed.all()
+
+
 def test_ctrl_c_stops_the_pool_and_leaves_no_temporary_files(clean_tree, tmp_path):
     root, _ = clean_tree
 

@@ -108,11 +108,16 @@ def test_check_exits_1_when_gaps_are_left(clip_files):
     (["repair", "gapped.npz", "o.npz", "--gaps-report", "g.txt"], 2, ".csv or .json"),
     (["simulate", "truth.npz", "s.npz", "--ml", "10", "--seed", "-1"], 2, "seed must be ≥ 0"),
     (["repair", "one.npz", "o.npz"], 123, "one.npz: a clip of 1 frame(s) cannot be repaired"),
+    # A gap length in seconds means nothing without a rate (it used to mean 0 frames).
+    (["repair", "norate.npz", "o.npz", "--max-gap", "0.5s"], 2,
+     "norate.npz: the file states no frame rate, so --max-gap 0.5s"),
 ])
 def test_bad_input_gives_one_line_error_and_exit_code(clip_files, monkeypatch, args, code, words):
     monkeypatch.chdir(clip_files)
     (clip_files / "broken.npz").write_bytes(b"not a zip file at all")
     formats.write(smooth_clip(1, 3), clip_files / "one.npz")
+    formats.write(with_gap(smooth_clip(100, 3), 1, 40, 45).replace(rate=0.0),
+                  clip_files / "norate.npz")
     formats.write(Motion(np.zeros((5, 0, 3)), np.zeros((5, 0), bool), (), 100.0),
                   clip_files / "empty.npz")
     result = run(*args)

@@ -26,6 +26,8 @@ ENCODING = "utf-8"
 ERRORS = "surrogateescape"
 
 #: Cell texts (case-insensitive, after stripping blanks and quotes) that mean "missing".
+# A UTF-8 byte order mark (Excel's and Notepad's "UTF-8" saves) as Latin-1 decodes it.
+LATIN1_BOM = "\xef\xbb\xbf"
 MISSING_TOKENS = frozenset({"", "nan", "-nan", "+nan", "na", "n/a"})
 
 _LINE = re.compile(r"[^\r\n]*(?:\r\n|\r|\n)|[^\r\n]+$")

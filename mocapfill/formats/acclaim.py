@@ -62,6 +62,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import FormatError, ParameterError
 from ..motion import Motion
 from ..skeleton import ChannelState, Skeleton, motion_with_channels, patch_tokens, positions_edited
+from ._text import LATIN1_BOM
 
 INCH_IN = {"in": 1.0, "mm": 25.4, "cm": 2.54, "m": 0.0254}
 NOT_DOF_CHANNELS = ("tx", "ty", "tz", "l")
@@ -358,7 +359,7 @@ def _parse_amc(path: Path, lines: tuple[str, ...], skeleton: Skeleton,
     in_degrees = False
     cut_line = -1
     for i, line in enumerate(lines):
-        text = line.split("#", 1)[0]
+        text = (line.removeprefix(LATIN1_BOM) if i == 0 else line).split("#", 1)[0]
         tokens = text.split()
         if not tokens:
             continue

@@ -48,6 +48,7 @@ import numpy as np
 from ..errors import FormatError
 from ..motion import Motion
 from ..skeleton import ChannelState, Skeleton, motion_with_channels, patch_tokens, positions_edited
+from ._text import LATIN1_BOM
 
 _TOKEN = re.compile(r"\S+")
 _DECIMALS = re.compile(r"\.(\d+)")
@@ -218,7 +219,8 @@ def _read_source(path: Path, scale: float) -> tuple[BvhSource, float]:
         raise FormatError(path, "no MOTION section (is this a BVH file?)")
     motion_at = starts[0]
     try:
-        tree = _parse_hierarchy(_TOKEN.findall("".join(lines[:motion_at])))
+        tree = _parse_hierarchy(_TOKEN.findall("".join(lines[:motion_at])
+                                               .removeprefix(LATIN1_BOM)))
     except (ValueError, IndexError) as exc:
         raise FormatError(path, f"bad HIERARCHY: {exc}") from None
     rest = [i for i in range(motion_at + 1, len(lines)) if lines[i].strip()]

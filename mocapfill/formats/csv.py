@@ -277,8 +277,8 @@ def _read_vicon(path: Path, lines: list[str], delimiter: str, rate: float | None
                 units: str | None) -> Motion:
     sections: dict[str, tuple[int, str]] = {}
     after_blank = True          # a section starts the file or follows an empty line
-    for i, line in enumerate(lines):
-        cells = [cell_text(c) for c in split_cells(split_ending(line)[0], delimiter)]
+    for i in range(len(lines)):
+        cells = [cell_text(c) for c in split_cells(_body(lines, i), delimiter)]
         if after_blank and cells[0].lower() in VICON_SECTIONS and not any(cells[1:]):
             sections.setdefault(cells[0].lower(), (i, cells[0]))
         after_blank = not any(cells)

@@ -282,6 +282,14 @@ def test_channels_unwrap_and_with_channels_rewraps_only_filled_cells(tmp_path):
 
 # ----------------------------------------------------------------------- writing
 
+def test_an_amc_with_a_byte_order_mark_reads_as_without(tmp_path):
+    path = write_pair(tmp_path, [frame(1), frame(2, arm="30")])
+    expected = acclaim.read(path)
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    motion = acclaim.read(path)
+    np.testing.assert_array_equal(motion.positions, expected.positions)
+
+
 def test_filled_cell_is_written_in_place_with_six_significant_digits(tmp_path):
     amc = write_pair(tmp_path, [frame(1, arm="10"), frame(2, arm="nan"), frame(3, arm="20")])
     motion = acclaim.read(amc)

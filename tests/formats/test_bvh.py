@@ -273,6 +273,20 @@ def test_cells_made_missing_are_written_as_nan(tmp_path):
     assert out.read_text().splitlines()[-1] == "1 2 3 0 0 0 0 nan 0"
 
 
+def test_a_byte_order_mark_is_read_past_and_kept(tmp_path):
+    plain = write_bvh(tmp_path, ["1 2 3 0 0 0 0 0 0", "nan 0 0 0 0 0 0 0 0"])
+    path = tmp_path / "bom.bvh"
+    path.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes())
+    motion = bvh.read(path)
+    assert motion.labels == bvh.read(plain).labels
+    values, observed = bvh.channels(motion)
+    values[1, 0] = 1.0
+    out = tmp_path / "filled.bvh"
+    bvh.write(bvh.with_channels(motion, values, np.ones_like(observed)), out)
+    assert out.read_bytes().splitlines()[:-1] == path.read_bytes().splitlines()[:-1]
+    assert bvh.channels(bvh.read(out))[0][1, 0] == 1.0
+
+
 def test_filled_cells_use_the_files_decimals(tmp_path):
     motion = bvh.read(write_bvh(tmp_path, ["1.123456 0 0 0 0 0 0 0 0",
                                            "nan 0 0 0 0 0 0 0 0"]))

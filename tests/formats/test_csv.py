@@ -449,6 +449,17 @@ def test_vicon_patch_changes_only_filled_cells(tmp_path):
     assert out.read_bytes().split(b"\r\n")[5] == b"5,0,1.25,2.25,3.25,10.50,20.50,30.50"
 
 
+def test_vicon_export_with_a_byte_order_mark_reads_and_keeps_it(tmp_path):
+    path = tmp_path / "bom.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + VICON.encode())
+    original = csvfmt.read(path)
+    assert original.labels == csvfmt.read(write_text(tmp_path, VICON)).labels
+    out = tmp_path / "out.csv"
+    csvfmt.write(fill_by_interp(original), out)
+    assert out.read_bytes().startswith(b"\xef\xbb\xbfTrajectories")
+    assert_patch_invariant(original, fill_by_interp(original), out)
+
+
 # ----------------------------------------------------------------------------- headerless
 
 def test_headerless_file_with_3k_columns_is_k_markers(tmp_path):
