@@ -565,6 +565,27 @@ def _number_param(group_id: int, name: str, values: list[float], floating: bool)
     return _param_entry(group_id, name, 4 if floating else 2, dims, data)
 
 
+# Bytes of one char parameter's strings: its entry's offset to the next is a 16-bit word.
+_MAX_PARAM_DATA = 32_000
+
+
+def _label_chunks(labels: list[str]) -> list[list[str]]:
+    """Labels split into LABELS, LABELS2, ... entries: at most 255 strings each (a one-byte
+    count) and at most ``_MAX_PARAM_DATA`` bytes once padded to the entry's longest."""
+    chunks: list[list[str]] = [[]]
+    width = 0
+    for label in labels:
+        size = len(_encode(label))
+        chunk = chunks[-1]
+        if chunk and (len(chunk) == 255 or max(width, size) * (len(chunk) + 1)
+                      > _MAX_PARAM_DATA):
+            chunks.append([])
+            chunk, width = chunks[-1], 0
+        chunk.append(label)
+        width = max(width, size)
+    return chunks
+
+
 def _new_file(motion: Motion) -> bytes:
     """A new Intel float C3D: header, POINT/ANALOG/TRIAL parameters, float32 frames.
 
@@ -581,7 +602,7 @@ def _new_file(motion: Motion) -> bytes:
     first_frame = motion.first_frame if 1 <= motion.first_frame <= 0xFFFFFFFF - n_frames else 1
     last_frame = first_frame + n_frames - 1
     labels = list(motion.labels)
-    chunks = [labels[i:i + 255] for i in range(0, max(n_markers, 1), 255)]
+    chunks = _label_chunks(labels)
 
     params = [_group_entry(1, "POINT"),
               _number_param(1, "USED", [n_markers], False),
@@ -607,6 +628,10 @@ def _new_file(motion: Motion) -> bytes:
                              False)]
     section_size = 4 + sum(len(p) for p in params) + 2
     n_blocks = -(-section_size // 512)
+    if n_blocks > 0xFF:     # the parameter section's block count is one byte
+        raise FormatError(None, f"the labels of {n_markers} markers need a {n_blocks}-block "
+                                "parameter section, and a C3D file holds 255 blocks at most; "
+                                "write .trc or .csv, or shorten the labels")
     data_block = 2 + n_blocks
     params[5] = _number_param(1, "DATA_START", [data_block], False)
     section = (bytes([1, 0x50, n_blocks, 84]) + b"".join(params)).ljust(n_blocks * 512, b"\0")

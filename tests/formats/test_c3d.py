@@ -407,6 +407,30 @@ def test_new_file_reads_the_same_in_ezc3d(tmp_path, n_markers):
     assert tuple(listed) == motion.labels
 
 
+def test_new_file_splits_long_labels_so_each_entry_fits_its_16_bit_offset(tmp_path):
+    # 255 labels padded to a 170-byte one would be 43350 bytes: more than an entry holds.
+    labels = [f"M{j}" for j in range(300)]
+    labels[5] = "X" * 170
+    motion = Motion(walk(n_frames=4, n_points=300), np.ones((4, 300), bool), labels, 100.0)
+    out = tmp_path / "long_labels.c3d"
+    c3d.write(motion, out)
+    assert c3d.read(out).labels == tuple(labels)
+    ezc3d = pytest.importorskip("ezc3d")
+    point = ezc3d.c3d(str(out))["parameters"]["POINT"]
+    listed = [name for key in ("LABELS", "LABELS2", "LABELS3", "LABELS4") if key in point
+              for name in point[key]["value"]]
+    assert listed == labels
+
+
+def test_new_file_whose_labels_overflow_the_parameter_section_is_refused(tmp_path):
+    labels = [f"Subject_With_A_Long_Name:marker_{j:05d}_left_side" for j in range(3000)]
+    motion = Motion(np.ones((2, 3000, 3)), np.ones((2, 3000), bool), labels, 100.0)
+    out = tmp_path / "many.c3d"
+    with pytest.raises(FormatError, match="holds 255 blocks at most; write .trc or .csv"):
+        c3d.write(motion, out)
+    assert not out.exists()
+
+
 def test_new_file_past_65535_frames_keeps_every_frame(tmp_path):
     positions = np.arange(70_000 * 3, dtype=float).reshape(70_000, 1, 3) % 1000
     out = tmp_path / "long.c3d"
