@@ -340,7 +340,7 @@ def _write_in_place(motion, path: Path) -> None:
 
     path = Path(os.path.realpath(path))
     with formats.atomic_output(path, suffix=f".inplace{path.suffix}", mode_from=path) as tmp:
-        formats.write(motion, tmp)
+        formats.write(motion, tmp, final_path=path)
 
 
 def _temp_patterns(output: Path) -> list[str]:

@@ -216,6 +216,18 @@ def test_in_place_repairs_inputs_atomically_and_leaves_complete_files_untouched(
     assert not list(root.rglob(".*"))
 
 
+def test_in_place_amc_beside_several_skeletons_leaves_no_extra_file(tmp_path):
+    from .formats.test_acclaim import ASF, frame, write_pair
+
+    frames = [frame(1), frame(2, arm="10"), frame(3, arm=None), frame(4, arm="30")]
+    amc = write_pair(tmp_path, frames, stem="10_01", asf_name="10.asf")
+    (tmp_path / "09.asf").write_text(ASF.replace("length 3", "length 4", 1))
+    result = run(tmp_path, "--in-place", "-j", "1", "--max-jump", "0", *LINEAR)
+    assert result.exit_code == 0, result.output
+    assert formats.read(amc).observed.all()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["09.asf", "10.asf", "10_01.amc"]
+
+
 def test_globs_mirror_the_tree_under_their_fixed_folder(clean_tree, tmp_path):
     root, _ = clean_tree
     result = run(f"{root}/subject*/walk/*.npz", "-o", tmp_path / "out", "-j", "1", *LINEAR)

@@ -100,8 +100,13 @@ def _umask() -> int:
     return mask
 
 
-def write(motion: Motion, path: str | os.PathLike, **options) -> None:
+def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = None,
+          **options) -> None:
     """Write a motion file atomically; the suffix picks the format.
+
+    ``final_path`` is where the file will end up when ``path`` is a temporary name the
+    caller renames (an in-place repair): files it needs beside it (an AMC's skeleton) are
+    checked and put there, not beside the temporary name.
 
     Raises
     ------
@@ -125,7 +130,8 @@ def write(motion: Motion, path: str | os.PathLike, **options) -> None:
         # Files a written file needs beside it to be read back (an AMC's skeleton): checked
         # before writing, put in place after.
         companions = getattr(module, "companions", None)
-        after = companions(motion, path) if companions is not None else None
+        after = (companions(motion, final_path or path) if companions is not None
+                 else None)
         with atomic_output(path) as tmp:
             module.write(motion, Path(tmp), **options)
         if after is not None:

@@ -287,18 +287,27 @@ def build_skeleton(asf: _Asf) -> tuple[Skeleton, list[str], list[tuple[int, ...]
     return skeleton, channel_names, line_columns
 
 
+def _asf_names(amc: Path) -> list[str]:
+    """The skeleton names the reader tries first for an AMC: same stem, subject prefix."""
+    return list(dict.fromkeys([f"{amc.stem}.asf", f"{amc.stem.split('_')[0]}.asf"]))
+
+
+def _asf_files(folder: Path) -> dict[str, Path]:
+    return {p.name.lower(): p for p in folder.iterdir() if p.suffix.lower() == ".asf"}
+
+
 def find_asf(amc: Path) -> Path:
     """The ASF of an AMC: same stem, subject prefix, or the only .asf in the folder."""
     folder = amc.parent if str(amc.parent) else Path(".")
-    asfs = {p.name.lower(): p for p in folder.iterdir() if p.suffix.lower() == ".asf"}
-    tried = [f"{amc.stem}.asf", f"{amc.stem.split('_')[0]}.asf"]
+    asfs = _asf_files(folder)
+    tried = _asf_names(amc)
     for name in tried:
         if name.lower() in asfs:
             return asfs[name.lower()]
     if len(asfs) == 1:
         return next(iter(asfs.values()))
     found = f"{len(asfs)} .asf files" if asfs else "no .asf file"
-    raise FormatError(amc, f"cannot find its skeleton: tried {' and '.join(dict.fromkeys(tried))}"
+    raise FormatError(amc, f"cannot find its skeleton: tried {' and '.join(tried)}"
                            f" in {folder}, which holds {found}; put the skeleton beside it, "
                            f"named {amc.stem}.asf")
 
@@ -476,27 +485,42 @@ def companions(motion: Motion, path: Path):
 
     Returns None when the ``.asf`` the reader finds beside ``path`` is the input's (same
     file or same bytes), else the function that copies the input's skeleton there once the
-    AMC is written. Raises FormatError (naming ``path``) when the reader would find a
-    different skeleton there.
+    AMC is written. Raises FormatError (naming ``path``) when a different skeleton there
+    is named after the output's stem, the name the reader tries first.
+
+    The copy bears a name the reader tries before falling back to a folder's only
+    skeleton: the subject prefix (``10.asf`` beside ``10_01.amc``; trials of one subject
+    share it), or the output's stem where a different skeleton holds that name. An AMC
+    written beside the skeletons of other subjects (a batch of several into one folder)
+    thus reads back with its own, whatever else is or will be copied there; an existing
+    file is never replaced.
     """
     source = _source(motion, path)
-    try:
-        found = find_asf(path)
-    except FormatError:
-        found = None
-    if found is not None:
-        if found.resolve() == source.asf_path.resolve() or \
-                found.read_bytes() == source.asf_path.read_bytes():
+    folder = path.parent if str(path.parent) else Path(".")
+    asfs = _asf_files(folder)
+
+    def same(found: Path) -> bool:
+        return (found.resolve() == source.asf_path.resolve()
+                or found.read_bytes() == source.asf_path.read_bytes())
+
+    by_stem, by_prefix = _asf_names(path)[0], _asf_names(path)[-1]
+    if by_stem.lower() in asfs:
+        found = asfs[by_stem.lower()]
+        if same(found):
             return None
         raise FormatError(path, f"its folder already holds {found.name}, which differs from "
                                 f"the input's skeleton ({source.asf_path}) and would be read "
                                 "with it; write to another folder")
-    target = path.parent / source.asf_path.name
-    if target.exists():
-        # A file of that name the reader would not pick for this output (other .asf files
-        # beside it), maybe the input's own skeleton: never replaced; the copy takes the
-        # output's stem, the first name the reader tries.
-        target = path.parent / f"{path.stem}.asf"
+    if by_prefix.lower() in asfs:
+        if same(asfs[by_prefix.lower()]):
+            return None
+        name = by_stem                  # tried before the other subject's skeleton
+    elif len(asfs) == 1 and same(next(iter(asfs.values()))):
+        return None                     # the folder's only skeleton, the input's: read
+    else:
+        own = source.asf_path.name
+        name = own if own.lower() == by_prefix.lower() else by_prefix
+    target = folder / name
 
     def copy() -> None:
         from . import atomic_output

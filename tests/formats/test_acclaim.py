@@ -450,29 +450,65 @@ def test_an_amc_written_to_another_folder_gets_its_skeleton_and_reads_back(tmp_p
     motion = acclaim.read(write_pair(tmp_path / "in", [frame(1), frame(2, arm="10")],
                                      asf_name="tiny.asf"))
     formats.write(motion, tmp_path / "out" / "copy_01.amc")
-    assert (tmp_path / "out" / "tiny.asf").read_bytes() == (tmp_path / "in" / "tiny.asf"
+    # Named after the subject prefix, a name the reader tries before any other skeleton.
+    assert (tmp_path / "out" / "copy.asf").read_bytes() == (tmp_path / "in" / "tiny.asf"
                                                             ).read_bytes()
     back = formats.read(tmp_path / "out" / "copy_01.amc")
     np.testing.assert_array_equal(back.positions, motion.positions)
-    # A second output there finds it: nothing is copied again or refused.
+    # A second trial of the subject there finds it: nothing is copied again or refused.
     formats.write(motion, tmp_path / "out" / "copy_02.amc")
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
-        "copy_01.amc", "copy_02.amc", "tiny.asf"]
+        "copy.asf", "copy_01.amc", "copy_02.amc"]
 
 
-def test_a_different_skeleton_in_the_output_folder_is_refused_before_writing(tmp_path):
+def test_amcs_of_two_subjects_written_to_one_folder_each_read_back_with_their_own(tmp_path):
+    from mocapfill import formats
+
+    (tmp_path / "out").mkdir()
+    other_asf = ASF.replace("length 3", "length 4", 1)
+    read = {}
+    for subject, asf_text in (("09", ASF), ("10", other_asf)):
+        folder = tmp_path / subject
+        folder.mkdir()
+        amc = write_pair(folder, [frame(1), frame(2, arm="10")], stem=f"{subject}_01",
+                         asf_name=f"{subject}.asf")
+        (folder / f"{subject}.asf").write_text(asf_text)
+        read[subject] = acclaim.read(amc)
+        formats.write(read[subject], tmp_path / "out" / f"{subject}_01.amc")
+    for subject, motion in read.items():
+        np.testing.assert_array_equal(
+            formats.read(tmp_path / "out" / f"{subject}_01.amc").positions, motion.positions)
+    assert not np.array_equal(read["09"].positions, read["10"].positions)
+
+
+def test_a_different_skeleton_under_the_outputs_stem_is_refused_before_writing(tmp_path):
     from mocapfill import formats
 
     (tmp_path / "in").mkdir()
     (tmp_path / "out").mkdir()
     motion = acclaim.read(write_pair(tmp_path / "in", [frame(1)], asf_name="tiny.asf"))
-    (tmp_path / "out" / "tiny.asf").write_text(ASF.replace("length 3", "length 4", 1))
+    (tmp_path / "out" / "copy_01.asf").write_text(ASF.replace("length 3", "length 4", 1))
     with pytest.raises(FormatError, match="differs from the input's skeleton"):
         formats.write(motion, tmp_path / "out" / "copy_01.amc")
-    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["tiny.asf"]
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["copy_01.asf"]
 
 
-def test_the_copy_never_replaces_an_asf_and_takes_the_outputs_stem_instead(tmp_path):
+@pytest.mark.parametrize("other", ["tiny.asf", "copy.asf"])
+def test_a_different_skeleton_the_reader_would_try_later_is_outranked_by_the_copy(tmp_path,
+                                                                                  other):
+    from mocapfill import formats
+
+    (tmp_path / "in").mkdir()
+    (tmp_path / "out").mkdir()
+    motion = acclaim.read(write_pair(tmp_path / "in", [frame(1), frame(2, arm="10")],
+                                     asf_name="tiny.asf"))
+    (tmp_path / "out" / other).write_text(ASF.replace("length 3", "length 4", 1))
+    formats.write(motion, tmp_path / "out" / "copy_01.amc")
+    np.testing.assert_array_equal(formats.read(tmp_path / "out" / "copy_01.amc").positions,
+                                  motion.positions)
+
+
+def test_the_copy_never_replaces_an_asf_and_takes_the_subject_prefix_instead(tmp_path):
     # Two skeletons in the input folder: an output there finds neither by name, and the
     # input's own tiny.asf must not be rewritten (even with the same bytes).
     from mocapfill import formats
@@ -484,6 +520,6 @@ def test_the_copy_never_replaces_an_asf_and_takes_the_outputs_stem_instead(tmp_p
     formats.write(motion, tmp_path / "copy_02.amc")
     after = (tmp_path / "tiny.asf").stat()
     assert (after.st_ino, after.st_mtime_ns) == (before.st_ino, before.st_mtime_ns)
-    assert (tmp_path / "copy_02.asf").read_bytes() == (tmp_path / "tiny.asf").read_bytes()
+    assert (tmp_path / "copy.asf").read_bytes() == (tmp_path / "tiny.asf").read_bytes()
     np.testing.assert_array_equal(formats.read(tmp_path / "copy_02.amc").positions,
                                   motion.positions)
