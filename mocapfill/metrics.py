@@ -1,6 +1,7 @@
 """Errors of a repair against the truth."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,8 +16,20 @@ MM_PER_UNIT = {"mm": 1.0, "millimeter": 1.0, "millimetre": 1.0, "cm": 10.0, "m":
 
 
 def mm_per_unit(units: str) -> float | None:
-    """Millimetres in one unit, or None when the unit is unknown."""
-    return MM_PER_UNIT.get(units.strip().lower())
+    """Millimetres in one unit, or None when the unit is unknown.
+
+    A unit divided by a number (``in/0.45``: CMU AMC lengths, inches over the ASF's
+    ``:units length``) is that unit's millimetres over the number.
+    """
+    name, _, divisor = units.strip().lower().partition("/")
+    mm = MM_PER_UNIT.get(name.strip())
+    if mm is None or not divisor:
+        return mm
+    try:
+        by = float(divisor)
+    except ValueError:
+        return None
+    return mm / by if math.isfinite(by) and by > 0 else None
 
 
 @dataclass(frozen=True)

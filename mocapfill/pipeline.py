@@ -71,7 +71,8 @@ class RepairOptions:
         "rejected: jump"). None = the larger of 40 mm and 5 × the marker's largest
         observed second difference, plus its largest observed frame-to-frame step where
         the prediction had only one sample; 0 or inf disables the check. In file units
-        when the units are unknown.
+        when the units are unknown. A channel-space repair is checked on the points its
+        filled channels move (see :func:`repair_channels`).
     """
 
     method: str = "trnn"
@@ -396,6 +397,26 @@ def _boundary_jumps(positions: np.ndarray, observed: np.ndarray, gaps: list[Gap]
     return worst[0], worst[1]
 
 
+def _jumping(positions: np.ndarray, motion: Motion, gaps: list[Gap],
+             options: RepairOptions) -> list[bool]:
+    """For each filled gap, whether its fill jumps at an end (see ``RepairOptions``):
+    ``positions`` (frames, markers, 3) hold the fills, ``motion`` the input they join."""
+    from .metrics import mm_per_unit
+
+    unit_mm = mm_per_unit(motion.units) or 1.0
+    moving, still = _boundary_jumps(positions, motion.observed, gaps)
+    thresholds: dict[int, tuple[float, float]] = {}
+    jumping = []
+    for gap, jump_moving, jump_still in zip(gaps, moving, still):
+        if gap.marker not in thresholds:
+            thresholds[gap.marker] = _jump_thresholds(motion.positions[:, gap.marker],
+                                                      motion.observed[:, gap.marker],
+                                                      options, unit_mm)
+        limit_moving, limit_still = thresholds[gap.marker]
+        jumping.append(bool(jump_moving > limit_moving or jump_still > limit_still))
+    return jumping
+
+
 def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult:
     """Fill the gaps of a clip.
 
@@ -434,31 +455,21 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     filled = motion.with_matrix(solved, np.ones_like(observed), evidence).positions
     del solved, observed
 
-    from .metrics import mm_per_unit
-
-    unit_mm = mm_per_unit(motion.units) or 1.0
     # ``filled`` becomes the result: accepted fills stay, everything else is put back from
     # the input below (no extra full-size copy of the clip).
     positions = filled
     accepted = np.zeros(motion.observed.shape, dtype=bool)
     new_observed = motion.observed.copy()
-    thresholds: dict[int, tuple[float, float]] = {}
     to_check = [index for index, o in enumerate(outcomes) if o.status == FILLED]
     for index in to_check:
         gap = outcomes[index].gap
         if gap.at_start or gap.at_end:
             _fill_ends(filled[:, gap.marker, :], motion.observed[:, gap.marker], gap,
                        options.ends)
-    moving, still = _boundary_jumps(filled, motion.observed,
-                                    [outcomes[i].gap for i in to_check])
-    for index, jump_moving, jump_still in zip(to_check, moving, still):
+    jumping = _jumping(filled, motion, [outcomes[i].gap for i in to_check], options)
+    for index, jumps in zip(to_check, jumping):
         gap = outcomes[index].gap
-        if gap.marker not in thresholds:
-            thresholds[gap.marker] = _jump_thresholds(motion.positions[:, gap.marker],
-                                                      motion.observed[:, gap.marker],
-                                                      options, unit_mm)
-        limit_moving, limit_still = thresholds[gap.marker]
-        if jump_moving > limit_moving or jump_still > limit_still:
+        if jumps:
             outcomes[index] = GapOutcome(gap, REJECTED_JUMP, options.method)
             continue
         accepted[gap.start:gap.stop, gap.marker] = True
@@ -493,12 +504,15 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
     rotation channels unwrapped along time, and re-wraps only the filled cells. Each
     channel's runs of missing frames follow the gap policy of the joint that owns the
     channel. The returned outcomes describe the position gaps of the input: a gap is
-    filled when every channel that moves the point was filled.
+    filled when every channel that moves the point was filled. The jump check runs on
+    those points' positions: a point whose fill jumps has the fills of every channel
+    moving it put back over its gap, and every gap that loses fills so is "rejected: jump".
     """
     from . import formats
-    from .skeleton import Skeleton
+    from .skeleton import Skeleton, observed_points
 
     started = time.perf_counter()
+    rejected: set[tuple[int, int]] = set()
     module = formats.format_module(motion.path) if motion.path is not None else None
     if module is None or not hasattr(module, "channels"):
         raise ParameterError("channel-space repair needs a clip read from a BVH or AMC file")
@@ -529,14 +543,30 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
                 if fill[start, column] and (start == 0 or stop == values.shape[0]):
                     _fill_channel_ends(solved[:, column], observed[:, column], start, stop,
                                        options.ends)
-        values = np.where(fill, solved, values)
-        repaired = module.with_channels(motion, values, observed | fill)
+        repaired = module.with_channels(motion, np.where(fill, solved, values),
+                                        observed | fill)
+        # The jump check, on the points the filled channels move: a point whose fill
+        # jumps has the fills of every channel moving it put back over its gap (points
+        # sharing those channels lose those frames' fills too).
+        done = [g for g in before if repaired.observed[g.start:g.stop, g.marker].all()]
+        jumping = [g for g, jumps in zip(done, _jumping(repaired.positions, motion, done,
+                                                        options)) if jumps]
+        if jumping:
+            moves = ~observed_points(skeleton, ~np.eye(values.shape[1], dtype=bool))
+            for gap in jumping:
+                fill[gap.start:gap.stop, moves[:, gap.marker]] = False
+            repaired = module.with_channels(motion, np.where(fill, solved, values),
+                                            observed | fill)
+            rejected = {(g.marker, g.start) for g in done
+                        if not repaired.observed[g.start:g.stop, g.marker].all()}
     else:
         repaired = motion
     outcomes = []
     for gap in before:
         done = repaired.observed[gap.start:gap.stop, gap.marker].all()
         status = FILLED if done else _gap_status(gap, motion, options)
-        outcomes.append(GapOutcome(gap, status if status != FILLED or done
-                                   else "left: channels missing", options.method))
+        if status == FILLED and not done:
+            status = (REJECTED_JUMP if (gap.marker, gap.start) in rejected
+                      else "left: channels missing")
+        outcomes.append(GapOutcome(gap, status, options.method))
     return RepairResult(repaired, outcomes, time.perf_counter() - started)

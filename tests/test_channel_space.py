@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from mocapfill import formats
-from mocapfill.gaps import simulate_channel_gaps
+from mocapfill.formats.bvh import channels as bvh_channels
+from mocapfill.gaps import find_gaps, simulate_channel_gaps
 from mocapfill.pipeline import RepairOptions, repair
 
 from .conftest import shared_file
@@ -48,3 +49,33 @@ def test_channel_repair_with_the_default_method_fills_every_gap(tmp_path):
     assert result.motion.observed.all()
     np.testing.assert_array_equal(result.motion.positions[gapped.observed],
                                   gapped.positions[gapped.observed])
+
+
+def _chain_with_a_gap(tmp_path, column):
+    from .formats.test_bvh import write_bvh
+
+    rows = []
+    for f in range(40):
+        cells = [f"{f:.4f}", "0", "0", "0", "0", "0", f"{3 * f:.4f}", f"{f:.4f}", "0"]
+        cells[3] = f"{2 * f:.4f}"
+        if 15 <= f < 25:
+            cells[column] = "nan"
+        rows.append(" ".join(cells))
+    return formats.read(write_bvh(tmp_path, rows))
+
+
+@pytest.mark.parametrize(("column", "points"), [(6, ["Arm_End"]),        # the arm's own turn
+                                                (3, ["Arm", "Arm_End"])])  # the hips' turn
+def test_channel_repair_applies_the_jump_check_to_the_points_it_moves(tmp_path, column,
+                                                                      points):
+    gapped = _chain_with_a_gap(tmp_path, column)
+    assert [g.label for g in find_gaps(gapped)] == points
+    filled = repair(gapped, RepairOptions(space="channels", method="linear"))
+    assert {o.status for o in filled.gaps} == {"filled"} and filled.motion.observed.all()
+    # A tolerance below any fill's deviation from the constant-velocity prediction.
+    strict = repair(gapped, RepairOptions(space="channels", method="linear",
+                                          max_jump_mm=1e-9))
+    assert [o.status for o in strict.gaps] == ["rejected: jump"] * len(points)
+    np.testing.assert_array_equal(strict.motion.observed, gapped.observed)
+    values, observed = bvh_channels(strict.motion)
+    assert np.isnan(values[15:25, column]).all() and not observed[15:25, column].any()

@@ -355,3 +355,12 @@ def test_a_numerical_breakdown_of_the_method_is_a_clean_solver_error(monkeypatch
     _, gapped = gapped_clip()
     with pytest.raises(SolverError, match="broke down numerically.*SVD did not converge"):
         repair(gapped, RepairOptions(method="trnn"))
+
+
+@pytest.mark.parametrize(("units", "mm"), [("mm", 1.0), ("M", 1000.0), ("in/0.45", 25.4 / 0.45),
+                                          ("in", 25.4), ("in/0", None), ("in/x", None),
+                                          ("parsecs", None), ("mm/2", 0.5)])
+def test_millimetres_per_unit_of_plain_and_divided_units(units, mm):
+    from mocapfill.metrics import mm_per_unit
+
+    assert mm_per_unit(units) == (pytest.approx(mm) if mm is not None else None)

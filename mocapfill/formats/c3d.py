@@ -375,6 +375,8 @@ def _model_outputs(point: dict[str, _Param], labels: list[str], n_points: int) -
 def _units(point: dict[str, _Param]) -> str:
     """POINT:UNITS normalised ("mete", "meters" -> "m"); "mm" when absent."""
     raw = next(iter(_strings(point.get("UNITS"))), "").strip().lower()
+    if raw and not raw.isalpha():
+        return raw          # a compound unit ("in/0.45", the CMU AMC length): kept whole
     if not raw or raw.startswith(("mm", "milli")):
         return "mm"
     if raw.startswith(("cm", "centi")):
@@ -599,7 +601,7 @@ def _new_file(motion: Motion) -> bytes:
     scale = -(float(finite.max()) / 32000 if finite.size and finite.max() > 0 else 1.0)
     # Frame numbers past 65535 live in TRIAL:ACTUAL_START_FIELD / ACTUAL_END_FIELD (two
     # 16-bit words each); the header's 16-bit words then hold 65535.
-    first_frame = motion.first_frame if 1 <= motion.first_frame <= 0xFFFFFFFF - n_frames else 1
+    first_frame = motion.first_frame if 0 <= motion.first_frame <= 0xFFFFFFFF - n_frames else 1
     last_frame = first_frame + n_frames - 1
     labels = list(motion.labels)
     chunks = _label_chunks(labels)

@@ -259,7 +259,10 @@ def simplex_least_squares(gram: np.ndarray, *, max_iter: int | None = None) -> n
     w[best] = 1.0
     if not G[best, best] > 0:
         return w
-    G = G / G[best, best]
+    with np.errstate(over="ignore"):
+        G = G / G[best, best]
+    if not np.isfinite(G).all():    # the best column's error is ~0 beside others': exact
+        return w
     support = w > 0
     blocked = np.zeros(k, dtype=bool)     # columns that failed to enter since w last moved
     for _ in range(10 * k + 10 if max_iter is None else max_iter):

@@ -137,7 +137,7 @@ def test_extra_empty_and_duplicate_labels_are_made_unique(tmp_path):
 
 @pytest.mark.parametrize(("stored", "expected"),
                          [("mm", "mm"), ("mete", "m"), ("m", "m"), ("meters", "m"),
-                          ("cm", "cm"), ("", "mm")])
+                          ("cm", "cm"), ("", "mm"), ("in/0.45", "in/0.45")])
 def test_units_are_normalised(tmp_path, stored, expected):
     motion = c3d.read(write_c3d(tmp_path / "u.c3d", walk(n_points=1), units=stored))
     assert motion.units == expected
@@ -371,10 +371,10 @@ def test_new_file_round_trips_through_our_reader(tmp_path):
     assert back.source.processor == "intel" and back.source.is_float
 
 
-@pytest.mark.parametrize("first_frame", [65_520, 70_000])
-def test_new_file_numbered_past_frame_65535_keeps_every_frame_and_its_number(tmp_path,
-                                                                             first_frame):
-    # The header's 16-bit frame words cannot hold these numbers; TRIAL's fields can.
+@pytest.mark.parametrize("first_frame", [0, 65_520, 70_000])     # 0: OptiTrack counts so
+def test_new_file_numbered_from_0_or_past_65535_keeps_every_frame_and_its_number(
+        tmp_path, first_frame):
+    # The header's 16-bit frame words cannot hold numbers past 65535; TRIAL's fields can.
     motion = in_memory_motion(first_frame=first_frame)
     out = tmp_path / "late.c3d"
     c3d.write(motion, out)

@@ -1,6 +1,8 @@
 """The default blend's validation: stand-ins (pseudo_gaps) and the weights they give."""
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -126,6 +128,14 @@ def test_convex_fit_from_gram_matrices_minimises_the_stacked_error():
     e = rng.normal(size=(30, 1))
     assert np.allclose(simplex_least_squares(evidence(np.hstack([e, -e]))[0]), [0.5, 0.5],
                        atol=1e-6)
+
+
+def test_convex_fit_keeps_a_candidate_whose_error_is_next_to_nothing_beside_the_others():
+    # Dividing by a subnormal best error overflowed (a warning, inf in the products).
+    gram = np.array([[1e-310, 0.0], [0.0, 1e10]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert simplex_least_squares(gram).tolist() == [1.0, 0.0]
 
 
 def test_bagged_weights_keep_a_clear_winner_and_hedge_a_close_call():
