@@ -289,6 +289,7 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
     from . import formats
     from .pipeline import repair as run_repair
 
+    formats.check_output(out_path, in_path)
     if gaps_report is not None:
         _check_gaps_report(gaps_report, in_path, out_path)
     motion = _read(in_path, zero_is_missing)
@@ -321,6 +322,8 @@ def _check_gaps_report(report: Path, in_path: Path, out_path: Path) -> None:
     folder = report.parent if str(report.parent) else Path(".")
     if not folder.is_dir():
         raise ParameterError(f"--gaps-report {report}: folder {folder} does not exist")
+    if report.is_dir():
+        raise ParameterError(f"--gaps-report {report} is a folder; name a .csv or .json file")
     for other, role in ((in_path, "the input"), (out_path, "the output")):
         if report.resolve() == other.resolve() or (
                 report.exists() and other.exists() and os.path.samefile(report, other)):
@@ -417,7 +420,8 @@ def _repair_batch(paths, options, *, max_gap_s, out_dir, in_place, force, jobs, 
     if gaps_report is not None:
         raise ParameterError("--gaps-report is for one file; a batch writes --report FILE.json")
     if report_path is not None and (report_path.suffix.lower() != ".json"
-                                    or not report_path.parent.is_dir()):
+                                    or not report_path.parent.is_dir()
+                                    or report_path.is_dir()):
         # Checked now, not after hours of repairs.
         raise ParameterError(f"--report must name a .json file in an existing folder, got "
                              f"{report_path}")
@@ -486,6 +490,7 @@ def simulate(in_path: Path, out_path: Path, mr, ml, n_markers, seed, zero_is_mis
     from . import formats
     from .gaps import simulate_channel_gaps, simulate_gaps
 
+    formats.check_output(out_path, in_path)
     motion = _read(in_path, zero_is_missing)
     # A skeleton clip written back to its own format loses joint channels (nan cells);
     # otherwise the protocols remove marker (or joint position) samples.
@@ -640,6 +645,7 @@ def convert(in_path: Path, out_path: Path, zero_is_missing: str) -> None:
     """Convert IN to OUT's format (by suffix), keeping gaps as gaps."""
     from . import formats
 
+    formats.check_output(out_path, in_path)
     motion = _read(in_path, zero_is_missing)
     formats.write(motion, out_path)
     click.echo(f"{in_path} -> {out_path}: {motion.n_markers} markers, {motion.n_frames} frames",

@@ -4,6 +4,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 from pathlib import Path
 
 from .errors import FormatError
@@ -29,7 +30,9 @@ def info_dict(motion: Motion) -> dict:
         "per_marker": [{"marker": r.label, "missing": r.missing, "frames": r.frames,
                         "percent": round(r.percent, 3), "gaps": r.gaps,
                         "longest_gap_frames": r.longest,
-                        "longest_gap_s": round(r.longest_s, 4),
+                        # null, not NaN (not JSON), for a clip without a rate
+                        "longest_gap_s": (round(r.longest_s, 4) if math.isfinite(r.longest_s)
+                                          else None),
                         "fillable": bool(f)}
                        for r, f in zip(rows, motion.fillable)],
     }

@@ -245,12 +245,15 @@ def test_globs_mirror_the_tree_under_their_fixed_folder(clean_tree, tmp_path):
     (["missing_folder", "-o", "out"], "no such file or folder"),
     (["x.npz", "-o", "out", "--in-place"], "not both"),
     (["x.npz", "-o", "out", "--gaps-report", "g.csv"], "--report FILE.json"),
+    (["x.npz", "-o", "out", "--report", "folder.json"], "--report must name a .json file"),
 ])
 def test_batch_usage_errors_exit_2_with_one_line(tmp_path, monkeypatch, args, words):
     monkeypatch.chdir(tmp_path)
     formats.write(smooth_clip(50, 3), tmp_path / "x.npz")
+    (tmp_path / "folder.json").mkdir()
     result = run(*args)
     assert result.exit_code == 2
+    assert not (tmp_path / "out").exists()      # refused before any file was repaired
     assert words in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 

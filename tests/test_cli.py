@@ -66,6 +66,15 @@ def test_info_reports_per_marker_gaps(clip_files):
     assert "MK01" in text and "60/300" in text
 
 
+def test_info_json_of_a_clip_without_rate_is_valid_json(clip_files):
+    formats.write(formats.read(clip_files / "gapped.npz").replace(rate=0.0),
+                  clip_files / "norate.npz")
+    result = run("info", clip_files / "norate.npz", "--json")
+    rows = json.loads(result.stdout, parse_constant=lambda name: pytest.fail(name))
+    assert rows["per_marker"][1]["longest_gap_s"] is None
+    assert "with no frame rate (0 Hz)" in run("info", clip_files / "norate.npz").stdout
+
+
 def test_gaps_report_lists_every_gap(clip_files):
     report = clip_files / "gaps.csv"
     run("repair", clip_files / "gapped.npz", clip_files / "o.npz", "--max-gap", "0.4s",
@@ -108,6 +117,10 @@ def test_check_exits_1_when_gaps_are_left(clip_files):
     (["repair", "gapped.npz", "o.npz", "--gaps-report", "g.txt"], 2, ".csv or .json"),
     (["simulate", "truth.npz", "s.npz", "--ml", "10", "--seed", "-1"], 2, "seed must be ≥ 0"),
     (["repair", "one.npz", "o.npz"], 123, "one.npz: a clip of 1 frame(s) cannot be repaired"),
+    (["repair", "gapped.npz", "o.bvh"], 2, "o.bvh: BVH output needs a BVH input"),
+    (["convert", "gapped.npz", "o.amc"], 2, "o.amc: AMC output needs an AMC input"),
+    (["repair", "gapped.npz", "o.npz", "--gaps-report", "folder.csv"], 2,
+     "--gaps-report folder.csv is a folder"),
     # A gap length in seconds means nothing without a rate (it used to mean 0 frames).
     (["repair", "norate.npz", "o.npz", "--max-gap", "0.5s"], 2,
      "norate.npz: the file states no frame rate, so --max-gap 0.5s"),
@@ -116,6 +129,7 @@ def test_bad_input_gives_one_line_error_and_exit_code(clip_files, monkeypatch, a
     monkeypatch.chdir(clip_files)
     (clip_files / "broken.npz").write_bytes(b"not a zip file at all")
     formats.write(smooth_clip(1, 3), clip_files / "one.npz")
+    (clip_files / "folder.csv").mkdir()
     formats.write(with_gap(smooth_clip(100, 3), 1, 40, 45).replace(rate=0.0),
                   clip_files / "norate.npz")
     formats.write(Motion(np.zeros((5, 0, 3)), np.zeros((5, 0), bool), (), 100.0),
@@ -126,6 +140,19 @@ def test_bad_input_gives_one_line_error_and_exit_code(clip_files, monkeypatch, a
     assert len(result.stderr.strip().splitlines()) == 1
     assert "Traceback" not in result.output
     assert not (clip_files / "o.npz").exists() and not (clip_files / "s.npz").exists()
+
+
+@pytest.mark.parametrize("out", ["o.xyz", "o.bvh", "nodir/o.c3d", "sub"])
+def test_an_output_that_cannot_be_written_is_refused_before_the_repair(clip_files,
+                                                                       monkeypatch, out):
+    from mocapfill import pipeline
+
+    (clip_files / "sub").mkdir()
+    monkeypatch.chdir(clip_files)
+    monkeypatch.setattr(pipeline, "repair", lambda *a, **k: pytest.fail("repair ran"))
+    result = run("repair", "gapped.npz", out)
+    assert result.exit_code == 2 and len(result.stderr.strip().splitlines()) == 1, \
+        result.output
 
 
 def test_failed_write_leaves_no_partial_output(clip_files, monkeypatch):
@@ -270,8 +297,8 @@ def test_a_one_frame_skeleton_clip_is_refused_in_channel_space_too(tmp_path):
 def test_an_output_that_cannot_be_written_is_named_not_its_temporary(clip_files):
     (clip_files / "folder.npz").mkdir()
     result = run("repair", clip_files / "gapped.npz", clip_files / "folder.npz")
-    assert result.exit_code == 123
-    assert "folder.npz: " in result.stderr and ".tmp" not in result.stderr
+    assert result.exit_code == 2        # refused before the repair
+    assert "folder.npz: is a folder" in result.stderr and ".tmp" not in result.stderr
     assert not [p for p in clip_files.iterdir() if p.name.startswith(".")]
 
 

@@ -100,6 +100,28 @@ def _umask() -> int:
     return mask
 
 
+def check_output(path: str | os.PathLike, input_path: str | os.PathLike) -> None:
+    """Before any work on ``input_path``: the checks :func:`write` makes on an output that
+    need no clip (a known suffix, an existing folder, not the input, not a folder, a
+    skeleton format only from the same format), so that a long repair is not thrown away
+    for a mistyped OUT. Raises FormatError naming ``path``."""
+    path, input_path = Path(path), Path(input_path)
+    format_module(path)
+    directory = path.parent if str(path.parent) else Path(".")
+    if not directory.is_dir():
+        raise FormatError(path, f"output folder {directory} does not exist", exit_code=2)
+    if path.is_dir():
+        raise FormatError(path, "is a folder; name the output file", exit_code=2)
+    if path.exists() and input_path.exists() and path.resolve() == input_path.resolve():
+        raise FormatError(path, "refusing to overwrite the input file", exit_code=2)
+    suffix = path.suffix.lower()
+    if suffix in SKELETON_FORMATS and input_path.suffix.lower() != suffix:
+        name, article = {".bvh": ("BVH", "a"), ".amc": ("AMC", "an")}[suffix]
+        raise FormatError(path, f"{name} output needs {article} {name} input (positions "
+                                "cannot be turned into joint angles); write .c3d/.trc/.csv "
+                                "instead", exit_code=2)
+
+
 def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = None,
           **options) -> None:
     """Write a motion file atomically; the suffix picks the format.
