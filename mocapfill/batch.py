@@ -405,14 +405,15 @@ def repair_file(job: FileJob) -> FileRecord:
     try:
         motion = _read(job)
         frames = motion.n_frames
-        # Made here, not by the planner, so Dask workers create the tree on their side.
-        job.output.parent.mkdir(parents=True, exist_ok=True)
         try:
             result = repair(motion, _options_for(job, motion.rate))
         except NothingToRepair as exc:
             # An empty clip (one frame, no marker with a sample) is bad input, as
             # `mocapfill repair IN OUT` reports it (exit 123): failed, and nothing written.
             return record(FAILED, _problem(exc, job.input))
+        # Made here, not by the planner, so Dask workers create the tree on their side;
+        # after the repair, so a file that fails leaves no empty folder behind.
+        job.output.parent.mkdir(parents=True, exist_ok=True)
         if result.filled:
             if job.in_place:
                 _write_in_place(result.motion, job.output)

@@ -135,8 +135,8 @@ def test_an_empty_clip_fails_alone_and_in_a_batch_with_the_same_reason(tmp_path,
     # batch; both now report it as bad input.
     from mocapfill.motion import Motion
 
-    source = tmp_path / "in" / "empty.npz"
-    source.parent.mkdir()
+    source = tmp_path / "in" / "sub" / "empty.npz"
+    source.parent.mkdir(parents=True)
     if kind == "one frame":
         clip = smooth_clip(1, 4)
     else:
@@ -147,10 +147,10 @@ def test_an_empty_clip_fails_alone_and_in_a_batch_with_the_same_reason(tmp_path,
     alone = run(source, tmp_path / "alone.npz", *LINEAR)
     assert alone.exit_code == 123 and not (tmp_path / "alone.npz").exists()
     report_path = tmp_path / "report.json"
-    many = run(source.parent, "-o", tmp_path / "out", "-j", "1", "--report", report_path,
+    many = run(tmp_path / "in", "-o", tmp_path / "out", "-j", "1", "--report", report_path,
                *LINEAR)
     assert many.exit_code == 123, many.output
-    assert not (tmp_path / "out" / "empty.npz").exists()
+    assert not (tmp_path / "out" / "sub").exists()     # no empty folder either
     record, = _report(report_path)["files"]
     assert record["status"] == "failed"
     assert record["reason"] and str(source) not in record["reason"]

@@ -68,7 +68,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError
-from ..motion import Motion
+from ..motion import Motion, unique_labels
 from ._text import (
     CUT_ROW_NOTE,
     RowWidth,
@@ -193,7 +193,9 @@ def new_file_lines(motion: Motion, decimals: int | None = None) -> list[str]:
     def number(value: float) -> str:
         return format_float(value) if decimals is None else f"{value:.{decimals}f}"
 
-    names = [_clean_label(label, j) for j, label in enumerate(motion.labels)]
+    # Unique (a repeated name would make its columns unreadable), like the TRC and C3D
+    # writers' names.
+    names = unique_labels([_clean_label(label, j) for j, label in enumerate(motion.labels)])
     header = ["Frame", "Time"] + [quote(f"{name}_{axis}", ",")
                                   for name in names for axis in "XYZ"]
     rate = writable_rate(motion.rate, DEFAULT_RATE)

@@ -1,5 +1,7 @@
 """NumPy ``.npz``: arrays ``positions`` (frames, markers, 3), ``observed``, ``labels``,
-``rate``, ``units``. Missing samples are stored as NaN and as False in ``observed``.
+``rate``, ``units``, ``first_frame`` and ``fillable`` (False for points that are not
+markers: C3D model outputs). Missing samples are stored as NaN and as False in
+``observed``. Only ``positions`` is required; labels and units may be stored as bytes.
 
 ``rate`` 0 means "not known", as for a C3D without ``POINT:RATE``; a negative or
 non-finite rate is a FormatError."""
@@ -14,31 +16,69 @@ from ..errors import FormatError
 from ..motion import Motion
 
 
+def _text(value) -> str:
+    """A label or unit as stored: str, or bytes (UTF-8 where it decodes, else Latin-1)."""
+    if isinstance(value, bytes):
+        try:
+            return value.decode("utf-8")
+        except UnicodeDecodeError:
+            return value.decode("latin-1")
+    return str(value)
+
+
+def _scalar(data, name: str, path: Path) -> float:
+    values = np.asarray(data[name]).reshape(-1)
+    if values.size != 1:
+        raise FormatError(path, f"{name} must hold one number, got {values.size}")
+    return float(values[0])
+
+
 def read(path: Path, **_options) -> Motion:
+    if not zipfile.is_zipfile(path):
+        raise FormatError(path, "not an .npz archive (no zip signature)")
     try:
         with np.load(path, allow_pickle=False) as data:
             positions = np.asarray(data["positions"], dtype=np.float64)
             observed = (np.asarray(data["observed"], bool) if "observed" in data
                         else np.isfinite(positions).all(axis=2))
-            labels = [str(s) for s in data["labels"]] if "labels" in data else None
-            rate = float(data["rate"]) if "rate" in data else 120.0
-            units = str(data["units"]) if "units" in data else "mm"
+            labels = ([_text(s) for s in np.asarray(data["labels"]).reshape(-1)]
+                      if "labels" in data else None)
+            rate = _scalar(data, "rate", path) if "rate" in data else 120.0
+            units = (_text(np.asarray(data["units"]).reshape(-1)[0]) if "units" in data
+                     else "mm")
+            first_frame = int(_scalar(data, "first_frame", path)) \
+                if "first_frame" in data else 1
+            fillable = (np.asarray(data["fillable"], bool).reshape(-1) if "fillable" in data
+                        else None)
     except (zipfile.BadZipFile, OSError) as exc:
         raise FormatError(path, f"not a valid .npz archive ({exc})") from None
     except KeyError as exc:
         raise FormatError(path, f"missing array {exc}") from None
+    except (ValueError, TypeError) as exc:     # object arrays, text where numbers belong
+        why = ("it holds Python objects, which are never loaded" if "pickle" in str(exc)
+               else str(exc))
+        raise FormatError(path, f"unreadable array ({why})") from None
     if positions.ndim != 3 or positions.shape[2] != 3:
         raise FormatError(path, f"positions must be (frames, markers, 3), got {positions.shape}")
+    if observed.shape != positions.shape[:2]:
+        raise FormatError(path, f"observed must be {positions.shape[:2]}, got {observed.shape}")
     if not (np.isfinite(rate) and rate >= 0):
         raise FormatError(path, f"rate is {rate}, not a frame rate (a positive, finite number "
                                 "of Hz, or 0 when not known)")
     if labels is None:
         labels = [f"M{j + 1:03d}" for j in range(positions.shape[1])]
-    return Motion(positions, observed, tuple(labels), rate, units, path=path)
+    if len(labels) != positions.shape[1]:
+        raise FormatError(path, f"{len(labels)} labels for {positions.shape[1]} markers")
+    if fillable is not None and fillable.shape != (positions.shape[1],):
+        raise FormatError(path, f"fillable must hold one entry per marker, got {fillable.size}")
+    return Motion(positions, observed, tuple(labels), rate, units, fillable=fillable,
+                  path=path, first_frame=first_frame)
 
 
 def write(motion: Motion, path: Path, **_options) -> None:
     with open(path, "wb") as fh:
         np.savez_compressed(fh, positions=motion.positions, observed=motion.observed,
                             labels=np.array(motion.labels, dtype=str),
-                            rate=np.float64(motion.rate), units=np.array(motion.units))
+                            rate=np.float64(motion.rate), units=np.array(motion.units),
+                            first_frame=np.int64(motion.first_frame),
+                            fillable=motion.fillable)

@@ -648,6 +648,13 @@ def test_a_clip_without_rate_is_written_at_the_rate_of_its_time_column(tmp_path)
     assert csvfmt.read(out).rate == 120
 
 
+def test_a_new_file_renames_repeated_labels_so_it_reads_back(tmp_path):
+    motion = Motion(np.ones((2, 3, 3)), np.ones((2, 3), bool), ("A", "A", "B"), 100.0)
+    out = tmp_path / "dup.csv"
+    csvfmt.write(motion, out)
+    assert csvfmt.read(out).labels == ("A", "A_2", "B")
+
+
 @pytest.mark.parametrize("suffix", [".csv", ".trc"])
 def test_a_clip_without_markers_is_not_written(tmp_path, suffix):
     # Neither text format can hold one: the file would be rejected when read back.

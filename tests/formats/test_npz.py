@@ -1,4 +1,5 @@
-"""NumPy .npz: clips of no frames read but are not written; the rate must be usable."""
+"""NumPy .npz: what a clip carries survives a round trip; clips of no frames read but are
+not written; the rate must be usable; damaged or foreign archives are named as such."""
 from __future__ import annotations
 
 import numpy as np
@@ -33,3 +34,35 @@ def test_a_negative_or_non_finite_rate_is_a_format_error(tmp_path, rate):
     with pytest.raises(FormatError) as caught:
         npz.read(path)
     assert str(caught.value).startswith(f"{path}: rate is {rate}, not a frame rate")
+
+
+def test_first_frame_and_model_outputs_survive_a_round_trip(tmp_path):
+    motion = formats.read(save(tmp_path / "clip.npz"))
+    motion = motion.replace(first_frame=244, fillable=np.array([True, False]))
+    formats.write(motion, tmp_path / "out.npz")
+    back = formats.read(tmp_path / "out.npz")
+    assert back.first_frame == 244 and back.fillable.tolist() == [True, False]
+
+
+def test_labels_and_units_stored_as_bytes_and_a_one_element_rate_read(tmp_path):
+    path = tmp_path / "bytes.npz"
+    np.savez(path, positions=np.zeros((2, 2, 3)), labels=np.array([b"LASI", b"R\xc3\xa4"]),
+             units=np.array(b"mm"), rate=np.array([240.0]))
+    motion = npz.read(path)
+    assert (motion.labels, motion.units, motion.rate) == (("LASI", "Rä"), "mm", 240.0)
+
+
+@pytest.mark.parametrize(("content", "words"), [
+    (b"\x02\x50" + bytes(510), "not an .npz archive (no zip signature)"),     # a C3D renamed
+    (None, "unreadable array"),                                           # an object array
+])
+def test_a_foreign_or_unreadable_archive_is_named_as_such(tmp_path, content, words):
+    path = tmp_path / "clip.npz"
+    if content is None:
+        np.savez(path, positions=np.array([[[1, 2, 3]], [[1, 2, "x"]]], dtype=object))
+    else:
+        path.write_bytes(content)
+    with pytest.raises(FormatError) as caught:
+        npz.read(path)
+    assert str(caught.value).startswith(f"{path}: {words}")
+    assert "allow_pickle" not in str(caught.value)
