@@ -157,6 +157,13 @@ def utf8_or_latin1(data: bytes) -> str:
         return data.decode("latin-1")
 
 
+def latin1_label(name: str) -> str:
+    """A name read from a file decoded as Latin-1 (BVH, AMC, ASF keep their bytes so), as a
+    readable label: re-read as UTF-8 where its bytes are valid UTF-8 (``Hüfte``, not
+    ``HÃ¼fte``)."""
+    return utf8_or_latin1(name.encode("latin-1"))
+
+
 def quote(text: str, delimiter: str) -> str:
     """``text`` as a cell, in quotes only when it holds the delimiter, a quote or a newline."""
     if delimiter in text or '"' in text or "\n" in text or "\r" in text:

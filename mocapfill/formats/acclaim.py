@@ -62,7 +62,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import FormatError, ParameterError
 from ..motion import Motion
 from ..skeleton import ChannelState, Skeleton, motion_with_channels, patch_tokens, positions_edited
-from ._text import LATIN1_BOM
+from ._text import LATIN1_BOM, latin1_label
 
 INCH_IN = {"in": 1.0, "mm": 25.4, "cm": 2.54, "m": 0.0254}
 NOT_DOF_CHANNELS = ("tx", "ty", "tz", "l")
@@ -354,6 +354,15 @@ class AmcSource:
     scale: float = 1.0
     cut_line: int = -1
 
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """What the reader worked around, for reports: a file ending inside a line."""
+        last = self.lines[-1] if self.lines else "\n"
+        if last.endswith(("\n", "\r")) or not last.split("#", 1)[0].strip():
+            return ()
+        return ("the file ends inside its last line (no final line ending): its last value "
+                "is not read (it may be cut short)",)
+
 
 def _parse_amc(path: Path, lines: tuple[str, ...], skeleton: Skeleton,
                line_columns: list[tuple[int, ...]]
@@ -467,8 +476,8 @@ def read(path: Path, *, asf: Path | str | None = None, rate: float = 120.0,
                        tuple(ends), ChannelState.as_read(skeleton, values), angle_factor, scale,
                        cut_line)
     positions, observed = source.state.points()
-    return Motion(positions * scale, observed, skeleton.names, rate, label, source=source,
-                  path=path, first_frame=numbers[0])
+    return Motion(positions * scale, observed, tuple(latin1_label(n) for n in skeleton.names),
+                  rate, label, source=source, path=path, first_frame=numbers[0])
 
 
 # --------------------------------------------------------------------------- channel space

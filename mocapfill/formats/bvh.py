@@ -48,7 +48,7 @@ import numpy as np
 from ..errors import FormatError
 from ..motion import Motion
 from ..skeleton import ChannelState, Skeleton, motion_with_channels, patch_tokens, positions_edited
-from ._text import LATIN1_BOM
+from ._text import LATIN1_BOM, latin1_label
 
 _TOKEN = re.compile(r"\S+")
 _DECIMALS = re.compile(r"\.(\d+)")
@@ -265,8 +265,9 @@ def _read_source(path: Path, scale: float) -> tuple[BvhSource, float]:
 
 def _motion(source: BvhSource, rate: float, units: str, path: Path | None) -> Motion:
     positions, observed = source.state.points()
-    return Motion(positions * source.scale, observed, source.state.skeleton.names, rate,
-                  units, source=source, path=path)
+    labels = tuple(latin1_label(name) for name in source.state.skeleton.names)
+    return Motion(positions * source.scale, observed, labels, rate, units, source=source,
+                  path=path)
 
 
 def read(path: Path, *, units: str = "unknown", scale: float = 1.0, **_options) -> Motion:

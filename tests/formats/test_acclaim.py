@@ -321,6 +321,11 @@ def test_filling_the_line_an_amc_ends_inside_writes_that_line_whole(tmp_path):
                                         np.ones_like(observed)), out)
     assert out.read_text() == amc.read_text().removesuffix("hand 10 2") + "hand 10 20\n"
     assert acclaim.read(out).observed.all()
+    # The reader's note reaches reports (info, repair), as for TRC and CSV; none once whole.
+    from mocapfill.report import reader_notes
+
+    assert reader_notes(motion) and "ends inside its last line" in reader_notes(motion)[0]
+    assert reader_notes(acclaim.read(out)) == ()
 
 
 def test_radian_amc_is_written_back_in_radians(tmp_path):

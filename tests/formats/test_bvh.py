@@ -287,6 +287,19 @@ def test_a_byte_order_mark_is_read_past_and_kept(tmp_path):
     assert bvh.channels(bvh.read(out))[0][1, 0] == 1.0
 
 
+def test_utf8_joint_names_read_as_written_and_the_patch_keeps_their_bytes(tmp_path):
+    plain = write_bvh(tmp_path, ["1 2 3 0 0 0 0 0 0", "1 2 3 0 0 0 nan 0 0"])
+    path = tmp_path / "hüfte.bvh"
+    path.write_bytes(plain.read_bytes().replace(b"Hips", "Hüfte".encode()))
+    motion = bvh.read(path)
+    assert motion.labels[0] == "Hüfte"
+    values, observed = bvh.channels(motion)
+    values[1, 6] = 0.0
+    out = tmp_path / "filled.bvh"
+    bvh.write(bvh.with_channels(motion, values, np.ones_like(observed)), out)
+    assert out.read_bytes().splitlines()[:-1] == path.read_bytes().splitlines()[:-1]
+
+
 def test_filled_cells_use_the_files_decimals(tmp_path):
     motion = bvh.read(write_bvh(tmp_path, ["1.123456 0 0 0 0 0 0 0 0",
                                            "nan 0 0 0 0 0 0 0 0"]))
