@@ -317,8 +317,12 @@ def plan(paths: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None =
                 raise ParameterError(f"{output} is an input; refusing to overwrite it "
                                      "(choose another output folder, or --in-place)")
             if key in claimed:
+                hint = ("they differ only in their suffix, which --suffix replaces: run the "
+                        "batch once per input format, into different folders"
+                        if Path(claimed[key]).with_suffix("") == file.with_suffix("")
+                        else "pass their common folder instead")
                 raise ParameterError(f"{claimed[key]} and {file} would both be written to "
-                                     f"{output}; pass their common folder instead")
+                                     f"{output}; {hint}")
             claimed[key] = file
             if not force and _is_up_to_date(file, output):
                 skipped.append(FileRecord(str(file), str(output), SKIPPED,

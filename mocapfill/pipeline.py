@@ -187,8 +187,12 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
     except (np.linalg.LinAlgError, FloatingPointError) as exc:
         # A numerical breakdown (found by fuzzing: coordinates near the float32 limit in a
         # corrupt C3D made an SVD fail) is a clean failure of this clip, not a traceback.
+        given = ", ".join(f"--{k.replace('_', '-')} {v:g}" for k, v in solver_options.items()
+                          if isinstance(v, (int, float)) and k != "rate")
+        suspects = (f"the options given ({given}) or " if given else "") + \
+            "the file's coordinates (corrupt or absurd values)"
         raise SolverError(f"method {method!r} broke down numerically on this clip ({exc}); "
-                          "check the file for corrupt or absurd coordinates") from None
+                          f"check {suspects}") from None
     return scale.inverse(solved)
 
 

@@ -66,8 +66,14 @@ def format_info(motion: Motion, gaps_only: bool = False) -> str:
 
 def format_info_before_after(before: Motion, after: Motion, gaps_only: bool = False) -> str:
     """Per-marker missing n/N, gaps and longest gap before and after a repair."""
-    if before.labels != after.labels or before.n_frames != after.n_frames:
-        raise FormatError(after.path, "does not match the original in markers × frames")
+    if before.n_frames != after.n_frames or before.n_markers != after.n_markers:
+        raise FormatError(after.path, f"does not match the original in markers × frames "
+                                      f"({after.n_markers} × {after.n_frames}, the original "
+                                      f"{before.n_markers} × {before.n_frames})")
+    if before.labels != after.labels:
+        a, b = next((a, b) for a, b in zip(before.labels, after.labels) if a != b)
+        raise FormatError(after.path, f"does not match the original's marker names "
+                                      f"({b!r} where it has {a!r})")
     rows_before, rows_after = summarise(before), summarise(after)
     width = max([6] + [len(r.label) for r in rows_before])
     lines = [f"{before.path or 'before'} -> {after.path or 'after'}: missing samples "

@@ -246,10 +246,13 @@ def test_globs_mirror_the_tree_under_their_fixed_folder(clean_tree, tmp_path):
     (["x.npz", "-o", "out", "--in-place"], "not both"),
     (["x.npz", "-o", "out", "--gaps-report", "g.csv"], "--report FILE.json"),
     (["x.npz", "-o", "out", "--report", "folder.json"], "--report must name a .json file"),
+    (["x.npz", "x.csv", "-o", "out", "--suffix", ".trc"],
+     "differ only in their suffix, which --suffix replaces"),
 ])
 def test_batch_usage_errors_exit_2_with_one_line(tmp_path, monkeypatch, args, words):
     monkeypatch.chdir(tmp_path)
     formats.write(smooth_clip(50, 3), tmp_path / "x.npz")
+    formats.write(smooth_clip(50, 3), tmp_path / "x.csv")
     (tmp_path / "folder.json").mkdir()
     result = run(*args)
     assert result.exit_code == 2

@@ -75,6 +75,17 @@ def test_info_json_of_a_clip_without_rate_is_valid_json(clip_files):
     assert "with no frame rate (0 Hz)" in run("info", clip_files / "norate.npz").stdout
 
 
+def test_info_before_after_names_what_differs(clip_files):
+    gapped = formats.read(clip_files / "gapped.npz")
+    renamed = gapped.replace(labels=("X",) + gapped.labels[1:])
+    formats.write(renamed, clip_files / "renamed.npz")
+    formats.write(smooth_clip(299, 10), clip_files / "short.npz")
+    names = run("info", clip_files / "gapped.npz", clip_files / "renamed.npz")
+    assert names.exit_code == 123 and "marker names ('X' where it has 'MK00')" in names.stderr
+    size = run("info", clip_files / "gapped.npz", clip_files / "short.npz")
+    assert "(10 × 299, the original 10 × 300)" in size.stderr
+
+
 def test_gaps_report_lists_every_gap(clip_files):
     report = clip_files / "gaps.csv"
     run("repair", clip_files / "gapped.npz", clip_files / "o.npz", "--max-gap", "0.4s",

@@ -348,13 +348,17 @@ def test_a_numerical_breakdown_of_the_method_is_a_clean_solver_error(monkeypatch
     from mocapfill import pipeline
     from mocapfill.errors import SolverError
 
-    def breaks_down(matrix, observed, **options):
+    def breaks_down(matrix, observed, mu=1.0, **options):
         raise np.linalg.LinAlgError("SVD did not converge")
 
     monkeypatch.setattr(pipeline, "get_method", lambda name: breaks_down)
     _, gapped = gapped_clip()
-    with pytest.raises(SolverError, match="broke down numerically.*SVD did not converge"):
+    with pytest.raises(SolverError, match="broke down numerically.*SVD did not converge"
+                                          ".*check the file's coordinates"):
         repair(gapped, RepairOptions(method="trnn"))
+    # Options the user gave are suspects too, named first.
+    with pytest.raises(SolverError, match=r"check the options given \(--mu 1e\+308\) or "):
+        repair(gapped, RepairOptions(method="trnn", solver_options={"mu": 1e308}))
 
 
 @pytest.mark.parametrize(("units", "mm"), [("mm", 1.0), ("M", 1000.0), ("in/0.45", 25.4 / 0.45),
