@@ -5,6 +5,7 @@ mocapfill. A marker sample is observed or missing as a whole (all three coordina
 """
 from __future__ import annotations
 
+import fnmatch
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -134,6 +135,14 @@ def from_matrix(data: np.ndarray, observed: np.ndarray | None = None, *, rate: f
     positions = data.reshape(n_markers, 3, -1).transpose(2, 0, 1)
     labels = labels or [f"M{j + 1:03d}" for j in range(n_markers)]
     return Motion(positions, observed, tuple(labels), rate, units)
+
+
+def label_matches(label: str, patterns: Sequence[str]) -> bool:
+    """Whether a marker label matches any of the names or shell globs, with or without
+    its Vicon ``Subject:`` prefix (``LKNE`` and ``L*`` select ``Male:LKNE``)."""
+    bare = label.rsplit(":", 1)[-1]
+    return any(fnmatch.fnmatchcase(label, p) or fnmatch.fnmatchcase(bare, p)
+               for p in patterns)
 
 
 def unique_labels(names: Sequence[str]) -> list[str]:

@@ -6,7 +6,6 @@ comes back bit-identical, and only samples the policy allows are filled.
 """
 from __future__ import annotations
 
-import fnmatch
 import math
 import time
 from contextlib import contextmanager
@@ -18,7 +17,7 @@ import numpy as np
 
 from .errors import NothingToRepair, ParameterError, SolverError, named
 from .gaps import Gap, find_gaps, missing_runs
-from .motion import Motion
+from .motion import Motion, label_matches
 from .scaling import UnitScale
 from .solvers import get_method, option_names
 from .solvers._threads import release_memory
@@ -61,8 +60,9 @@ class RepairOptions:
         nearest observed value, or "extrapolate" with the method's fill clamped to the
         marker's observed range widened by ``END_MARGIN`` of that range on each side.
     markers, exclude
-        Names or shell globs: only markers matching ``markers`` (all when empty) and not
-        matching ``exclude`` are filled. Every marker still serves as evidence.
+        Names or shell globs, matched with or without a label's ``Subject:`` prefix: only
+        markers matching ``markers`` (all when empty) and not matching ``exclude`` are
+        filled. Every marker still serves as evidence.
     max_jump_mm
         Jump check. At each end of a gap that has observed samples, the fill's first
         sample is compared with the constant-velocity prediction from the last two observed
@@ -133,18 +133,14 @@ class RepairResult:
         return len(self.gaps) - self.filled
 
 
-def _matches(label: str, patterns: tuple[str, ...]) -> bool:
-    return any(fnmatch.fnmatchcase(label, p) for p in patterns)
-
-
 def _gap_status(gap: Gap, motion: Motion, options: RepairOptions) -> str:
     label = gap.label
     if not motion.fillable[gap.marker]:
         return LEFT_NOT_MARKER
     if gap.whole_clip:
         return LEFT_WHOLE
-    if (options.markers and not _matches(label, options.markers)) or \
-            _matches(label, options.exclude):
+    if (options.markers and not label_matches(label, options.markers)) or \
+            label_matches(label, options.exclude):
         return LEFT_NOT_SELECTED
     if options.max_gap_frames is not None and gap.length > options.max_gap_frames:
         return LEFT_TOO_LONG
@@ -441,6 +437,12 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     if motion.n_frames < 2:     # in either space: nothing to interpolate or fit from
         raise NothingToRepair(f"{named(motion.path)}a clip of {motion.n_frames} frame(s) cannot be "
                               "repaired")
+    if options.markers and not any(label_matches(label, options.markers)
+                                   for label in motion.labels):
+        # A typo would otherwise end in "0 gaps filled, N left (N not selected)".
+        shown = ", ".join(motion.labels[:8]) + (", ..." if motion.n_markers > 8 else "")
+        raise ParameterError(f"{named(motion.path)}--markers {' '.join(options.markers)} "
+                             f"matches no marker (the clip has {shown})")
     if options.space == "channels":
         return repair_channels(motion, options)
     started = time.perf_counter()

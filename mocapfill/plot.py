@@ -5,7 +5,6 @@ matplotlib is an optional extra (``pip install mocapfill[plot]``).
 """
 from __future__ import annotations
 
-import fnmatch
 import html
 import io
 from pathlib import Path
@@ -14,7 +13,7 @@ import numpy as np
 
 from .errors import FormatError, MocapfillError, ParameterError, named
 from .gaps import missing_runs
-from .motion import Motion
+from .motion import Motion, label_matches
 
 SUFFIXES = (".png", ".svg", ".html")
 MAX_DEFAULT_MARKERS = 8
@@ -26,7 +25,7 @@ MEASURED_COLOUR = "#333333"
 def _pick_markers(motion: Motion, patterns: tuple[str, ...]) -> list[int]:
     if patterns:
         chosen = [j for j, label in enumerate(motion.labels)
-                  if any(fnmatch.fnmatchcase(label, p) for p in patterns)]
+                  if label_matches(label, patterns)]
         if not chosen:
             raise ParameterError(f"no marker matches {', '.join(patterns)}")
         return chosen

@@ -93,6 +93,13 @@ def test_markers_and_exclude_restrict_what_is_filled():
     assert only.observed[:, [2, 5]].all() and not only.observed[40:45, 7].any()
     without = repair(gapped, RepairOptions(exclude=("MK02",))).motion
     assert not without.observed[100:160, 2].any() and without.observed[:, 5].all()
+    # Vicon labels carry a subject prefix the user need not type.
+    prefixed = gapped.replace(labels=tuple(f"Male:{label}" for label in gapped.labels))
+    assert repair(prefixed, RepairOptions(markers=("MK0[25]",))).motion.observed[:, [2, 5]].all()
+    # A pattern that matches nothing is a mistake, not "0 gaps filled".
+    with pytest.raises(ParameterError, match=r"--markers LASI MK9\* matches no marker "
+                                             r"\(the clip has MK00, MK01, "):
+        repair(gapped, RepairOptions(markers=("LASI", "MK9*")))
 
 
 def test_non_marker_points_are_never_filled():
