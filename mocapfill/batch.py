@@ -406,6 +406,9 @@ def repair_file(job: FileJob) -> FileRecord:
         return FileRecord(str(job.input), str(job.output), status, reason, filled, left,
                           round(time.perf_counter() - started, 4), frames)
 
+    problem = formats.skeleton_output_problem(job.output, job.input)
+    if problem is not None:         # known before reading: no solve thrown away
+        return record(FAILED, problem)
     try:
         motion = _read(job)
         frames = motion.n_frames

@@ -291,6 +291,20 @@ def test_max_gap_in_seconds_fails_a_file_without_rate_and_converts_at_each_files
     assert not formats.read(tmp_path / "out" / "fast.npz").observed.all()
 
 
+def test_a_skeleton_suffix_for_marker_inputs_fails_each_file_before_its_repair(
+        clean_tree, tmp_path, monkeypatch):
+    import mocapfill.pipeline
+
+    root, _ = clean_tree
+    monkeypatch.setattr(mocapfill.pipeline, "repair", lambda *a, **k: pytest.fail("ran"))
+    report = mocapfill.repair_many([root], tmp_path / "out", suffix=".bvh", jobs=1,
+                                   options=RepairOptions(method="linear"))
+    assert report.failed == N_GAPPED + 1
+    assert {r.reason for r in report.failures} == {
+        "BVH output needs a BVH input (positions cannot be turned into joint angles); "
+        "write .c3d/.trc/.csv instead"}
+
+
 def test_ctrl_c_stops_the_pool_and_leaves_no_temporary_files(clean_tree, tmp_path):
     root, _ = clean_tree
 

@@ -114,12 +114,21 @@ def check_output(path: str | os.PathLike, input_path: str | os.PathLike) -> None
         raise FormatError(path, "is a folder; name the output file", exit_code=2)
     if path.exists() and input_path.exists() and path.resolve() == input_path.resolve():
         raise FormatError(path, "refusing to overwrite the input file", exit_code=2)
-    suffix = path.suffix.lower()
-    if suffix in SKELETON_FORMATS and input_path.suffix.lower() != suffix:
+    problem = skeleton_output_problem(path, input_path)
+    if problem is not None:
+        raise FormatError(path, problem, exit_code=2)
+
+
+def skeleton_output_problem(path: str | os.PathLike, input_path: str | os.PathLike
+                            ) -> str | None:
+    """Why ``path`` cannot be written from ``input_path`` (a BVH or AMC output holds joint
+    angles, so it needs an input of its own format), or None."""
+    suffix = Path(path).suffix.lower()
+    if suffix in SKELETON_FORMATS and Path(input_path).suffix.lower() != suffix:
         name, article = {".bvh": ("BVH", "a"), ".amc": ("AMC", "an")}[suffix]
-        raise FormatError(path, f"{name} output needs {article} {name} input (positions "
-                                "cannot be turned into joint angles); write .c3d/.trc/.csv "
-                                "instead", exit_code=2)
+        return (f"{name} output needs {article} {name} input (positions cannot be turned "
+                "into joint angles); write .c3d/.trc/.csv instead")
+    return None
 
 
 def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = None,
