@@ -373,15 +373,12 @@ def _read(job: FileJob):
 
 def _options_for(job: FileJob, rate: float):
     from . import formats
-    from .pipeline import RepairOptions
+    from .pipeline import RepairOptions, frames_in_seconds
 
     options = job.options or RepairOptions()
     if job.max_gap_s is not None:
-        if not rate > 0:
-            raise ParameterError(f"{named(job.input)}the file states no frame rate, so "
-                                 f"--max-gap {job.max_gap_s:g}s has no length in frames; "
-                                 "give it in frames (40)")
-        options = replace(options, max_gap_frames=round(job.max_gap_s * rate))
+        frames = frames_in_seconds(job.max_gap_s, rate, job.input, f"{job.max_gap_s:g}s")
+        options = replace(options, max_gap_frames=round(frames))
     if formats.same_skeleton_format(job.input, job.output):
         options = replace(options, space="channels")
     return options

@@ -146,14 +146,15 @@ def _read(path: Path, zero_is_missing: str = "auto"):
 
 def _parse_max_gap(text: str | None, rate: float, path: Path | None = None) -> int | None:
     """'40' frames or '0.5s' seconds -> frames (None = unlimited); seconds need a rate."""
-    from .errors import ParameterError, named
+    from .errors import ParameterError
+    from .pipeline import frames_in_seconds
 
     if text is None:
         return None
     raw = text.strip().lower()
     try:
         if raw.endswith("s"):
-            frames = float(raw[:-1]) * rate
+            seconds = float(raw[:-1])
         else:
             frames = float(raw)
             if math.isfinite(frames) and frames != int(frames):
@@ -161,9 +162,8 @@ def _parse_max_gap(text: str | None, rate: float, path: Path | None = None) -> i
     except ValueError:
         raise ParameterError(f"--max-gap must be frames (40) or seconds (0.5s), got {text!r}") \
             from None
-    if raw.endswith("s") and not rate > 0:
-        raise ParameterError(f"{named(path)}the file states no frame rate, so --max-gap "
-                             f"{text} has no length in frames; give it in frames (40)")
+    if raw.endswith("s"):       # out of the try: the rate's error is a ValueError too
+        frames = frames_in_seconds(seconds, rate, path, text)
     if not math.isfinite(frames) or frames < 0:
         raise ParameterError(f"--max-gap must be a finite number ≥ 0 (at this file's rate), "
                              f"got {text!r}")

@@ -133,6 +133,16 @@ class RepairResult:
         return len(self.gaps) - self.filled
 
 
+def frames_in_seconds(seconds: float, rate: float, path, given: str) -> float:
+    """``seconds`` at the clip's ``rate`` as frames; a ParameterError naming ``path`` when
+    the clip states no rate (an option in seconds, ``given`` as the user wrote it, would
+    otherwise silently mean 0 frames)."""
+    if not rate > 0:
+        raise ParameterError(f"{named(path)}the file states no frame rate, so --max-gap "
+                             f"{given} has no length in frames; give it in frames (40)")
+    return seconds * rate
+
+
 def _gap_status(gap: Gap, motion: Motion, options: RepairOptions) -> str:
     label = gap.label
     if not motion.fillable[gap.marker]:

@@ -125,10 +125,15 @@ def skeleton_output_problem(path: str | os.PathLike, input_path: str | os.PathLi
     angles, so it needs an input of its own format), or None."""
     suffix = Path(path).suffix.lower()
     if suffix in SKELETON_FORMATS and Path(input_path).suffix.lower() != suffix:
-        name, article = {".bvh": ("BVH", "a"), ".amc": ("AMC", "an")}[suffix]
-        return (f"{name} output needs {article} {name} input (positions cannot be turned "
-                "into joint angles); write .c3d/.trc/.csv instead")
+        return skeleton_input_needed(suffix)
     return None
+
+
+def skeleton_input_needed(suffix: str) -> str:
+    """The problem with writing positions to a skeleton format (``.bvh`` or ``.amc``)."""
+    name, article = {".bvh": ("BVH", "a"), ".amc": ("AMC", "an")}[suffix]
+    return (f"{name} output needs {article} {name} input (positions cannot be turned into "
+            "joint angles); write .c3d/.trc/.csv instead")
 
 
 def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = None,

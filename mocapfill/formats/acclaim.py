@@ -62,6 +62,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import FormatError, ParameterError
 from ..motion import Motion
 from ..skeleton import ChannelState, Skeleton, motion_with_channels, patch_tokens, positions_edited
+from . import skeleton_input_needed
 from ._text import LATIN1_BOM, latin1_label
 
 INCH_IN = {"in": 1.0, "mm": 25.4, "cm": 2.54, "m": 0.0254}
@@ -484,8 +485,7 @@ def read(path: Path, *, asf: Path | str | None = None, rate: float = 120.0,
 
 def _source(motion: Motion, path: Path | None = None) -> AmcSource:
     if not isinstance(motion.source, AmcSource):
-        raise FormatError(path, "AMC output needs an AMC input (positions cannot be turned "
-                                "into joint angles); write .c3d/.trc/.csv instead")
+        raise FormatError(path, skeleton_input_needed(".amc"))
     return motion.source
 
 
@@ -512,7 +512,8 @@ def companions(motion: Motion, path: Path):
         return (found.resolve() == source.asf_path.resolve()
                 or found.read_bytes() == source.asf_path.read_bytes())
 
-    by_stem, by_prefix = _asf_names(path)[0], _asf_names(path)[-1]
+    tried = _asf_names(path)
+    by_stem, by_prefix = tried[0], tried[-1]
     if by_stem.lower() in asfs:
         found = asfs[by_stem.lower()]
         if same(found):

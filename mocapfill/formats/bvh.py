@@ -48,6 +48,7 @@ import numpy as np
 from ..errors import FormatError
 from ..motion import Motion
 from ..skeleton import ChannelState, Skeleton, motion_with_channels, patch_tokens, positions_edited
+from . import skeleton_input_needed
 from ._text import LATIN1_BOM, latin1_label
 
 _TOKEN = re.compile(r"\S+")
@@ -296,8 +297,7 @@ def read(path: Path, *, units: str = "unknown", scale: float = 1.0, **_options) 
 
 def _source(motion: Motion, path: Path | None = None) -> BvhSource:
     if not isinstance(motion.source, BvhSource):
-        raise FormatError(path, "BVH output needs a BVH input (positions cannot be turned "
-                                "into joint angles); write .c3d/.trc/.csv instead")
+        raise FormatError(path, skeleton_input_needed(".bvh"))
     return motion.source
 
 

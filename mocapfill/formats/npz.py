@@ -14,16 +14,12 @@ import numpy as np
 
 from ..errors import FormatError
 from ..motion import Motion
+from ._text import utf8_or_latin1
 
 
 def _text(value) -> str:
     """A label or unit as stored: str, or bytes (UTF-8 where it decodes, else Latin-1)."""
-    if isinstance(value, bytes):
-        try:
-            return value.decode("utf-8")
-        except UnicodeDecodeError:
-            return value.decode("latin-1")
-    return str(value)
+    return utf8_or_latin1(value) if isinstance(value, bytes) else str(value)
 
 
 def _scalar(data, name: str, path: Path) -> float:
