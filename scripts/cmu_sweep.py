@@ -19,9 +19,9 @@ one_thread_by_default()
 
 import numpy as np  # noqa: E402 (after the BLAS setting)
 
-from mocapfill.bench import CMU_CLIPS, SEEDS, _cmu_case  # noqa: E402 (after the BLAS setting)
+from mocapfill.bench import CMU_CLIPS, SEEDS, _cmu_case, repair_options  # noqa: E402 (after the BLAS setting)
 from mocapfill.metrics import score  # noqa: E402 (after the BLAS setting)
-from mocapfill.pipeline import RepairOptions, repair  # noqa: E402 (after the BLAS setting)
+from mocapfill.pipeline import repair  # noqa: E402 (after the BLAS setting)
 
 
 def main(protocols: str, specs: list[str]) -> None:
@@ -37,7 +37,7 @@ def main(protocols: str, specs: list[str]) -> None:
                 truth, gapped = _cmu_case(clip, protocol, seed).load()
                 for i, (method, options) in enumerate(variants):
                     started = time.perf_counter()
-                    result = repair(gapped, RepairOptions(method=method, solver_options=options))
+                    result = repair(gapped, repair_options(method, options))
                     seconds[i] += (time.perf_counter() - started) / len(SEEDS)
                     errors[i] += score(truth, result.motion, gapped).rmse_mm / len(SEEDS)
             print(f"{clip} {protocol[0]}={protocol[1]:g}",

@@ -18,9 +18,9 @@ one_thread_by_default()
 
 import numpy as np  # noqa: E402 (after the BLAS setting)
 
-from mocapfill.bench import WALKL_FILES, _walkl_case  # noqa: E402 (after the BLAS setting)
+from mocapfill.bench import WALKL_FILES, _walkl_case, repair_options  # noqa: E402 (after the BLAS setting)
 from mocapfill.metrics import score  # noqa: E402 (after the BLAS setting)
-from mocapfill.pipeline import RepairOptions, repair  # noqa: E402 (after the BLAS setting)
+from mocapfill.pipeline import repair  # noqa: E402 (after the BLAS setting)
 
 
 def main(specs: list[str]) -> None:
@@ -33,7 +33,7 @@ def main(specs: list[str]) -> None:
         truth, gapped = _walkl_case(name).load()
         errors = []
         for method, options in variants:
-            result = repair(gapped, RepairOptions(method=method, solver_options=options))
+            result = repair(gapped, repair_options(method, options))
             errors.append(score(truth, result.motion, gapped).rmse_3d_mm)
         means += np.array(errors) / len(WALKL_FILES)
         print(name, " ".join(f"{e:7.4f}" for e in errors), flush=True)

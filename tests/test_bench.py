@@ -1,7 +1,12 @@
 """The accuracy benchmark: table rendering and clean skips without data."""
 from __future__ import annotations
 
+import numpy as np
+
 from mocapfill import bench
+from mocapfill.solvers import METHODS
+
+from .helpers import smooth_clip, with_gap
 
 
 def _row(case, method, err, seconds=1.0, dataset="cmu", seed=0):
@@ -26,3 +31,35 @@ def test_missing_data_becomes_a_row_note_not_an_error(monkeypatch, tmp_path):
 
 def test_quick_subset_is_small():
     assert len(bench.cases(quick=True)) <= 4
+
+
+def _jumping_fill(matrix, observed, **_options):
+    """A method whose fill of every gap sits far from the data (jumps in at both ends)."""
+    return np.where(observed, matrix, matrix[observed].max() + 10.0)
+
+
+def _gapped_case() -> tuple[bench.Case, int]:
+    truth = smooth_clip(n_frames=300, n_markers=6)
+    gapped = with_gap(with_gap(truth, 1, 100, 130), 4, 200, 240)
+    interior = 30 + 40                      # marker samples
+    return bench.Case("cmu", "synthetic ml", 0, lambda: (truth, gapped)), interior
+
+
+def test_every_method_is_scored_on_every_interior_gap_sample(monkeypatch):
+    # The pipeline's jump check would put back a fill that starts with a jump and the
+    # method would be scored on the gaps it filled plausibly only (psvt on 85_02 ml=40:
+    # 400 of 1,200 samples). The benchmark scores each method's own fill of them all.
+    monkeypatch.setitem(METHODS, "jumping", f"{__name__}:_jumping_fill")
+    case, interior = _gapped_case()
+    jumping, linear = bench.run_case(case, ["jumping", "linear"])
+    assert jumping["note"] == "" and jumping["samples"] == interior
+    assert jumping["unfilled"] == 0 and linear["samples"] == interior
+    assert jumping["rmse_mm"] > 10 * linear["rmse_mm"]
+
+
+def test_unfilled_samples_are_marked_in_the_table():
+    rows = [_row("85_02 ml=40", "psvt", 1.0), _row("85_02 ml=40", "trnn", 2.0)]
+    rows[0]["unfilled"] = 240
+    table = bench.format_table(rows)
+    assert "| cmu 85_02 ml=40 | **1.00**† / 1.00s | 2.00 / 1.00s |" in table
+    assert "85_02 ml=40 / psvt: 240 interior samples left unfilled, not scored" in table
