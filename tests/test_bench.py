@@ -40,8 +40,8 @@ def _jumping_fill(matrix, observed, **_options):
 
 def _gapped_case() -> tuple[bench.Case, int]:
     truth = smooth_clip(n_frames=300, n_markers=6)
-    gapped = with_gap(with_gap(truth, 1, 100, 130), 4, 200, 240)
-    interior = 30 + 40                      # marker samples
+    gapped = with_gap(with_gap(with_gap(truth, 1, 100, 130), 4, 200, 240), 2, 0, 10)
+    interior = 30 + 40                      # marker samples; the end gap is left and not scored
     return bench.Case("cmu", "synthetic ml", 0, lambda: (truth, gapped)), interior
 
 
@@ -53,7 +53,8 @@ def test_every_method_is_scored_on_every_interior_gap_sample(monkeypatch):
     case, interior = _gapped_case()
     jumping, linear = bench.run_case(case, ["jumping", "linear"])
     assert jumping["note"] == "" and jumping["samples"] == interior
-    assert jumping["unfilled"] == 0 and linear["samples"] == interior
+    assert jumping["unfilled"] == 0 and linear["unfilled"] == 0
+    assert linear["samples"] == interior
     assert jumping["rmse_mm"] > 10 * linear["rmse_mm"]
 
 
