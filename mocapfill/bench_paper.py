@@ -30,7 +30,6 @@ after); the setup section records what was set and the load average at the start
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import datetime
 import math
 import os
@@ -364,53 +363,29 @@ def _revision() -> str:
         return "unknown"
 
 
-_OPENBLAS_SETTERS = ("openblas_set_num_threads", "scipy_openblas_set_num_threads",
-                     "scipy_openblas_set_num_threads64_", "openblas_set_num_threads64_")
-
-
-def _loaded_openblas() -> list[tuple[ctypes.CDLL, str]]:
-    """(library, setter name) of every OpenBLAS this process has loaded (Linux only)."""
-    try:
-        paths = {line.split()[-1] for line in Path("/proc/self/maps").read_text().splitlines()
-                 if "openblas" in line.rsplit("/", 1)[-1].lower()}
-    except OSError:
-        return []
-    found = []
-    for path in sorted(paths):
-        try:
-            library = ctypes.CDLL(path)
-        except OSError:
-            continue
-        setter = next((name for name in _OPENBLAS_SETTERS if hasattr(library, name)), None)
-        if setter is not None:
-            found.append((library, setter))
-    return found
-
-
 @contextlib.contextmanager
 def blas_threads(count: int | None):
-    """Run the block with ``count`` OpenBLAS threads; yields a description of what was set.
+    """Run the block with ``count`` BLAS threads; yields a description of what was set.
 
-    The previous counts are restored afterwards. Without OpenBLAS (or with ``count`` None)
-    nothing changes and the description says so.
+    threadpoolctl sets the count in every BLAS library loaded (numpy's and scipy's
+    OpenBLAS; scipy's is loaded first) and restores the previous counts afterwards. With
+    ``count`` None (or no BLAS library found) nothing changes and the description says
+    so.
     """
-    libraries = _loaded_openblas() if count is not None else []
-    previous = []
-    for library, setter in libraries:
-        getter = getattr(library, setter.replace("_set_", "_get_"), None)
-        previous.append(int(getter()) if getter is not None else None)
-        getattr(library, setter)(int(count))
-    env = ", ".join(f"{k}={os.environ[k]}" for k in
-                    ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-                    if k in os.environ)
-    plural = "y" if len(libraries) == 1 else "ies"
-    try:
-        yield (f"{count} (set in {len(libraries)} OpenBLAS librar{plural})" if libraries
-               else env or "library default (all cores)")
-    finally:
-        for (library, setter), old in zip(libraries, previous):
-            if old is not None:
-                getattr(library, setter)(old)
+    import scipy.linalg  # noqa: F401  (its own OpenBLAS, to be set as well)
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    names = [info["internal_api"] for info in threadpool_info() if info["user_api"] == "blas"]
+    if count is None or not names:
+        env = ", ".join(f"{k}={os.environ[k]}" for k in
+                        ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+                        if k in os.environ)
+        yield env or "library default (all cores)"
+        return
+    with threadpool_limits(limits=int(count), user_api="blas"):
+        kinds = ", ".join(sorted({"OpenBLAS" if n == "openblas" else n for n in names}))
+        plural = "y" if len(names) == 1 else "ies"
+        yield f"{count} (set in {len(names)} {kinds} librar{plural})"
 
 
 def describe_setup(command: str, threads: str) -> Setup:

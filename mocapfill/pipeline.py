@@ -15,6 +15,7 @@ from typing import Callable
 
 import numpy as np
 
+from ._blas import single_threaded
 from .errors import NothingToRepair, ParameterError, SolverError, named
 from .gaps import Gap, find_gaps, missing_runs
 from .motion import Motion, label_matches
@@ -427,8 +428,9 @@ def _jumping(positions: np.ndarray, motion: Motion, gaps: list[Gap],
     return jumping
 
 
+@single_threaded()
 def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult:
-    """Fill the gaps of a clip.
+    """Fill the gaps of a clip (BLAS on one thread meanwhile, see :mod:`mocapfill._blas`).
 
     Parameters
     ----------

@@ -18,6 +18,7 @@ import threading
 from collections.abc import Sequence
 from typing import Callable, TypeVar
 
+from .._blas import single_threaded
 from ..errors import ParameterError
 
 T = TypeVar("T")
@@ -77,8 +78,16 @@ def run_all(jobs: Sequence[Callable[[], T]], threads: int | None = None) -> list
     than after the running jobs.
     """
     threads = thread_count() if threads is None else threads
-    if threads <= 1 or len(jobs) <= 1:
-        return [job() for job in jobs]
+    # BLAS on one thread in every case: threaded BLAS under these threads would
+    # oversubscribe the cores, and rounds differently (mocapfill._blas), which would make
+    # the result depend on the thread count.
+    with single_threaded():
+        if threads <= 1 or len(jobs) <= 1:
+            return [job() for job in jobs]
+        return _run_threaded(jobs, threads)
+
+
+def _run_threaded(jobs: Sequence[Callable[[], T]], threads: int) -> list[T]:
     results: list = [None] * len(jobs)
     errors: list[BaseException | None] = [None] * len(jobs)
     queue = iter(range(len(jobs)))

@@ -1,0 +1,105 @@
+"""BLAS on one thread while mocapfill computes, unless the user set a thread count."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from mocapfill._blas import VARIABLES
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# Run in a fresh interpreter without the BLAS variables (the command line and the
+# measuring scripts set them; a program importing mocapfill usually does not). BLAS is
+# put on 3 threads first, so that the checks mean something on a one-core machine too.
+SCRIPT = r"""
+import json, sys, threading
+import numpy as np
+import scipy.linalg
+from threadpoolctl import threadpool_info, threadpool_limits
+
+threadpool_limits(3, user_api="blas")
+
+def counts():
+    return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
+
+import mocapfill
+from mocapfill import pipeline
+from mocapfill._blas import single_threaded
+from mocapfill.solvers._threads import run_all
+
+out = {"before": counts()}
+during = []
+solve = pipeline._complete_clip
+
+def spy(*args, **kwargs):
+    during.append(counts())
+    return solve(*args, **kwargs)
+
+pipeline._complete_clip = spy
+motion = mocapfill.read(sys.argv[1])
+mocapfill.repair(motion, mocapfill.RepairOptions(method="linear"))
+out["repair"] = during
+out["after_repair"] = counts()
+out["run_all"] = run_all([counts, counts], threads=2)
+out["run_all_serial"] = run_all([counts], threads=1)
+out["after_run_all"] = counts()
+
+# Nested blocks: the inner one leaving keeps the limit; the outer one restores.
+with single_threaded():
+    with single_threaded():
+        pass
+    out["nested_inner_left"] = counts()
+out["nested_outer_left"] = counts()
+# Outside the main thread nothing is set (OpenBLAS ignores counts set there).
+seen = []
+def other():
+    with single_threaded():
+        seen.append(counts())
+worker = threading.Thread(target=other)
+worker.start()
+worker.join()
+out["other_thread"] = seen
+out["after_other_thread"] = counts()
+print(json.dumps(out))
+"""
+
+
+def run_script(extra_env: dict[str, str] | None = None) -> dict:
+    env = {k: v for k, v in os.environ.items() if k not in VARIABLES}
+    env.update(extra_env or {})
+    done = subprocess.run([sys.executable, "-c", SCRIPT,
+                           str(ROOT / "sample_data" / "walk_gapped.csv")],
+                          capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)
+
+
+def test_repair_and_parallel_sections_run_blas_on_one_thread_then_restore():
+    out = run_script()
+    assert out["before"] == [3]
+    assert out["repair"] == [[1]]
+    assert out["after_repair"] == [3]
+    assert out["run_all"] == [[1], [1]]
+    assert out["run_all_serial"] == [[1]]
+    assert out["after_run_all"] == [3]
+
+
+def test_nested_blocks_keep_the_limit_until_the_outermost_leaves():
+    out = run_script()
+    assert out["nested_inner_left"] == [1]
+    assert out["nested_outer_left"] == [3]
+
+
+def test_a_block_outside_the_main_thread_changes_nothing():
+    out = run_script()
+    assert out["other_thread"] == [[3]]
+    assert out["after_other_thread"] == [3]
+
+
+def test_a_thread_count_set_in_the_environment_is_left_alone():
+    out = run_script({"OMP_NUM_THREADS": "2"})
+    assert out["repair"] == [[3]]
+    assert out["run_all"] == [[3], [3]]
