@@ -188,7 +188,7 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
     try:
         if borrowed is not None:
             solved, validation = fn.windowed(scaled, observed, borrowed=borrowed,
-                                             **solver_options)
+                                             skip_unweighted=True, **solver_options)
             return scale.inverse(solved), validation
         solved = fn(scaled, observed, **solver_options)
     except (np.linalg.LinAlgError, FloatingPointError) as exc:

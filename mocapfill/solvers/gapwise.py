@@ -557,6 +557,32 @@ class BlendReport:
     validation: Validation
 
 
+def _gap_weights(gapset: GapSet, weights: dict[int, np.ndarray],
+                 own: dict[int, list[Evidence]], names: tuple[str, ...], default: str,
+                 rng: np.random.Generator, prior: dict[str, float] | None,
+                 prior_share: float) -> list[np.ndarray]:
+    """Each interior gap's weights, before the outlier rule.
+
+    A gap with enough stand-ins of its own (long gaps, which are few) is judged on that
+    local evidence; the others share the weights of their length class. On gaps of
+    ``MIN_MODEL_GAP`` frames or more the ``prior`` is mixed in with share ``prior_share``.
+    """
+    fallback = np.eye(len(names))[names.index(default)]
+    prior_w = np.array([(prior or {}).get(name, 0.0) for name in names])
+    if prior_w.sum() > 0:
+        prior_w = prior_w / prior_w.sum()
+    gap_weights = []
+    for index, (_, a, b) in enumerate(gapset.gaps):
+        if len(own.get(index, [])) >= MIN_OWN_STANDINS:
+            w = _bagged(own[index], rng)
+        else:
+            w = _weights_for(length_class(b - a), weights, fallback)
+        if b - a >= MIN_MODEL_GAP and prior:
+            w = (1 - prior_share) * w + prior_share * prior_w
+        gap_weights.append(w)
+    return gap_weights
+
+
 def _stand_in_errors(fill_fn: Candidate, blinded: np.ndarray, train: np.ndarray,
                      matrix: np.ndarray, rows: np.ndarray, frames: np.ndarray) -> np.ndarray:
     """A candidate's errors (fill − data) on the hidden samples of the stand-ins, from its
@@ -582,7 +608,7 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
           default: str, seed: int = 0, validation_fraction: float = 0.1,
           prior: dict[str, float] | None = None, prior_share: float = 0.5,
           validation: Validation | None = None, costly: tuple[str, ...] = (),
-          ) -> tuple[np.ndarray, BlendReport]:
+          optional: tuple[str, ...] = ()) -> tuple[np.ndarray, BlendReport]:
     """Fill every interior gap with a validated convex blend of the candidate fills.
 
     Parameters
@@ -610,6 +636,13 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         validates itself, which runs every candidate twice.
     costly
         Names of the slowest candidates, whose runs start first (scheduling only).
+    optional
+        Names of candidates not run on the real mask when the weights give them no weight
+        on any gap (their runs there wait for the validation); such a candidate also drops
+        out of the
+        panel of the outlier rule, and if it is the ``default``, the end gaps take the
+        fill of the candidate run with the most weight over the gaps. For the windows of
+        long clips, where the costly candidates often get no weight at all.
 
     Returns
     -------
@@ -644,24 +677,20 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
             train = trial
             kept.append(((g, s, t), source))
         hidden = kept
-    # Every candidate runs twice, on the validation mask and on the real one; the runs are
-    # independent, so they share the cores: each candidate's two runs side by side, the
-    # ``costly`` candidates first, so that no core is left alone with a long run at the
-    # end. A validation run keeps only its errors on the stand-ins, not its full fill.
     first = [names.index(name) for name in costly if name in candidates]
     order = first + [i for i in range(len(names)) if i not in first]
-    jobs = [partial(candidates[names[i]], matrix, observed) for i in order]
+    fills: list[np.ndarray | None] = [None] * len(names)
+
+    def fill_job(i: int):
+        return partial(candidates[names[i]], matrix, observed)
+
     if hidden:
         blinded = np.where(train, matrix, 0.0)
         sample_rows, sample_frames, bounds = _hidden_samples(hidden, groups, observed)
-        trials = [partial(_stand_in_errors, candidates[names[i]], blinded, train, matrix,
-                          sample_rows, sample_frames) for i in order]
-        jobs = [job for pair in zip(trials, jobs) for job in pair]
-    done = run_all(jobs)
-    back = np.argsort(order)                   # job position of each candidate
-    fills = [(done[1::2] if hidden else done)[j] for j in back]
-    if hidden:
-        trial_errors = [done[0::2][j] for j in back]
+        trials = {i: partial(_stand_in_errors, candidates[names[i]], blinded, train, matrix,
+                             sample_rows, sample_frames) for i in order}
+
+    def gather(trial_errors: list[np.ndarray]) -> None:
         for index, ((_, a, b), source) in enumerate(hidden):
             lo, hi = bounds[index], bounds[index + 1]
             # Samples row by row, as the (rows × frames) block of the stand-in.
@@ -669,35 +698,52 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
                                        for errors_k in trial_errors], axis=1))
             errors.setdefault(length_class(b - a), []).append(block)
             own.setdefault(source, []).append(block)
-    weights = blend_weights(errors, rng)
 
-    fallback = np.eye(len(names))[names.index(default)]
-    prior_w = np.array([(prior or {}).get(name, 0.0) for name in names])
-    if prior_w.sum() > 0:
-        prior_w = prior_w / prior_w.sum()
-    out = np.where(observed, matrix, fills[names.index(default)])
-    gap_weights = []
+    # Every candidate runs twice, on the validation mask and on the real one; the runs are
+    # independent, so they share the cores: each candidate's two runs side by side, the
+    # ``costly`` candidates first, so that no core is left alone with a long run at the
+    # end. A validation run keeps only its errors on the stand-ins, not its full fill.
+    # The ``optional`` candidates' fills wait for the weights, which need the validation.
+    keys = [(kind, i) for i in order for kind in ("trial", "fill")
+            if (kind == "trial" and hidden) or (kind == "fill" and names[i] not in optional)]
+    done = dict(zip(keys, run_all([trials[i] if kind == "trial" else fill_job(i)
+                                   for kind, i in keys])))
+    for i in range(len(names)):
+        fills[i] = done.get(("fill", i))
+    if hidden:
+        gather([done[("trial", i)] for i in range(len(names))])
+    weights = blend_weights(errors, rng)
+    gap_weights = _gap_weights(gapset, weights, own, names, default, rng, prior, prior_share)
+    if optional:
+        used = np.any([w > 0 for w in gap_weights], axis=0) if gap_weights else \
+            np.zeros(len(names), dtype=bool)
+        later = [i for i in order if names[i] in optional and used[i]]
+        if not later and all(fill is None for fill in fills):
+            later = [names.index(default)]
+        for i, fill in zip(later, run_all([fill_job(i) for i in later])):
+            fills[i] = fill
+    ran = [i for i in range(len(names)) if fills[i] is not None]
+
+    # The default's fill takes the end gaps; where it was not run (``optional``), that of
+    # the candidate with the most weight over the gaps.
+    base = names.index(default)
+    if fills[base] is None:
+        total = np.sum(gap_weights, axis=0) if gap_weights else np.zeros(len(names))
+        base = max(ran, key=lambda i: total[i])
+    out = np.where(observed, matrix, fills[base])
     long_gaps: dict[int, list[int]] = {}    # length -> gaps of MIN_MODEL_GAP frames or more
     for index, (_, a, b) in enumerate(gapset.gaps):
-        # A gap with enough stand-ins of its own (long gaps, which are few) is judged on
-        # that local evidence; the others share the weights of their length class.
-        if len(own.get(index, [])) >= MIN_OWN_STANDINS:
-            w = _bagged(own[index], rng)
-        else:
-            w = _weights_for(length_class(b - a), weights, fallback)
         if b - a >= MIN_MODEL_GAP:
-            if prior:
-                w = (1 - prior_share) * w + prior_share * prior_w
             long_gaps.setdefault(b - a, []).append(index)
-        gap_weights.append(w)
     for length, indices in long_gaps.items():
         g, a, _ = np.array([gapset.gaps[i] for i in indices]).T
         rows = groups[g][:, :, None]                                 # (gaps, rows, 1)
         frames = (a[:, None] + np.arange(length))[:, None, :]        # (gaps, 1, length)
-        segments = np.stack([f[rows, frames] for f in fills], axis=1)
-        kept = _without_outliers(np.array([gap_weights[i] for i in indices]), segments)
+        segments = np.stack([fills[i][rows, frames] for i in ran], axis=1)
+        kept = _without_outliers(np.array([gap_weights[i][ran] for i in indices]), segments)
         for i, w in zip(indices, kept):
-            gap_weights[i] = w
+            gap_weights[i] = np.zeros(len(names))
+            gap_weights[i][ran] = w
     # Gaps sharing one weight vector are blended together (random loss gives tens of
     # thousands of gaps, most of them sharing their length class's weights).
     shared: dict[bytes, tuple[np.ndarray, list[int]]] = {}

@@ -408,14 +408,18 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
 
 def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
                     borrowed: Sequence[Validation | None] = (), seed: int = 0,
-                    validation_fraction: float = 0.1, **trnn_options
+                    validation_fraction: float = 0.1, skip_unweighted: bool = False,
+                    **trnn_options
                     ) -> tuple[np.ndarray, Validation | None]:
     """:func:`complete` for one window of a long clip, lending or borrowing validation.
 
     With ``borrowed`` validations (those of neighbouring windows) whose candidates are this
     window's, their pooled evidence sets the weights and the candidates run once; with
-    none that fit, the window validates itself as :func:`complete` does. Returns the
-    completed window and the validation used (None where the window has no gap).
+    none that fit, the window validates itself as :func:`complete` does. With
+    ``skip_unweighted`` the costly candidates (TrNN, PCA) are not run on the real mask
+    where the weights give them nothing (:func:`~mocapfill.solvers.gapwise.blend`'s
+    ``optional``; the pipeline's windows). Returns the completed window and the validation
+    used (None where the window has no gap).
     """
     from functools import partial
 
@@ -456,7 +460,8 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
     completed, report = blend(matrix, observed, candidates, default="trnn", seed=seed,
                               validation_fraction=validation_fraction,
                               validation=Validation.pooled(fitting) if fitting else None,
-                              costly=("trnn", "pca"))
+                              costly=("trnn", "pca"),
+                              optional=("trnn", "pca") if skip_unweighted else ())
     return completed, report.validation
 
 

@@ -323,3 +323,40 @@ def test_costly_candidates_start_first_and_the_fill_does_not_depend_on_the_order
         names = [name for name, _ in calls]
         assert names[:2] == (["slow", "slow"] if costly else ["linear", "linear"])
     np.testing.assert_array_equal(results[()], results[("slow",)])
+
+
+def test_optional_candidates_without_weight_are_not_run_on_the_real_mask():
+    from mocapfill.solvers._linalg import linear_fill
+    from mocapfill.solvers.gapwise import Validation, blend
+
+    t = np.arange(600) / 60.0
+    truth = np.vstack([np.sin(1.1 * (j + 1) * t + j) for j in range(18)])   # 6 markers
+    # Interior gaps, and one at the clip's start (the default candidate's to fill).
+    observed = _mask(6, 600, [(0, 100, 130), (2, 300, 320), (4, 450, 460), (5, 0, 25)])
+    matrix = np.where(observed, truth, 0.0)
+    calls: list = []
+    candidates = {"exact": _counting(lambda a, o: truth.copy(), calls, "exact"),
+                  "linear": _counting(linear_fill, calls, "linear"),
+                  "wild": _counting(lambda a, o: truth + 50.0, calls, "wild")}
+
+    filled, report = blend(matrix, observed, candidates, default="wild")
+    assert sorted(name for name, _ in calls) == ["exact", "exact", "linear", "linear",
+                                                 "wild", "wild"]
+    np.testing.assert_allclose(filled[15:18, :25], truth[15:18, :25] + 50.0)
+
+    calls.clear()
+    filled, report = blend(matrix, observed, candidates, default="wild", optional=("wild",))
+    # "wild" ran on the stand-ins only (its weight is 0 on every gap); "exact" took every
+    # interior gap and, with the most weight, the end gap in place of the default.
+    assert sorted(name for name, _ in calls) == ["exact", "exact", "linear", "linear",
+                                                 "wild"]
+    wild_masks = [mask for name, mask in calls if name == "wild"]
+    assert not (wild_masks[0] == observed).all()
+    np.testing.assert_allclose(filled, truth, atol=1e-12)
+
+    calls.clear()
+    borrowed = Validation.pooled([report.validation])
+    filled, _ = blend(matrix, observed, candidates, default="wild", optional=("wild",),
+                      validation=borrowed)
+    assert sorted(name for name, _ in calls) == ["exact", "linear"]
+    np.testing.assert_allclose(filled, truth, atol=1e-12)
