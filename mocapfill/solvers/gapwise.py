@@ -638,8 +638,8 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         Names of the slowest candidates, whose runs start first (scheduling only).
     optional
         Names of candidates not run on the real mask when the weights give them no weight
-        on any gap (their runs there wait for the validation); such a candidate also drops
-        out of the
+        on any gap (on a clip validating itself, their runs there wait for the
+        validation); such a candidate also drops out of the
         panel of the outlier rule, and if it is the ``default``, the end gaps take the
         fill of the candidate run with the most weight over the gaps. For the windows of
         long clips, where the costly candidates often get no weight at all.
@@ -704,24 +704,23 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     # ``costly`` candidates first, so that no core is left alone with a long run at the
     # end. A validation run keeps only its errors on the stand-ins, not its full fill.
     # The ``optional`` candidates' fills wait for the weights, which need the validation.
-    keys = [(kind, i) for i in order for kind in ("trial", "fill")
-            if (kind == "trial" and hidden) or (kind == "fill" and names[i] not in optional)]
-    done = dict(zip(keys, run_all([trials[i] if kind == "trial" else fill_job(i)
-                                   for kind, i in keys])))
-    for i in range(len(names)):
-        fills[i] = done.get(("fill", i))
     if hidden:
+        keys = [(kind, i) for i in order for kind in ("trial", "fill")
+                if kind == "trial" or names[i] not in optional]
+        done = dict(zip(keys, run_all([trials[i] if kind == "trial" else fill_job(i)
+                                       for kind, i in keys])))
+        for i in range(len(names)):
+            fills[i] = done.get(("fill", i))
         gather([done[("trial", i)] for i in range(len(names))])
     weights = blend_weights(errors, rng)
     gap_weights = _gap_weights(gapset, weights, own, names, default, rng, prior, prior_share)
-    if optional:
-        used = np.any([w > 0 for w in gap_weights], axis=0) if gap_weights else \
-            np.zeros(len(names), dtype=bool)
-        later = [i for i in order if names[i] in optional and used[i]]
-        if not later and all(fill is None for fill in fills):
-            later = [names.index(default)]
-        for i, fill in zip(later, run_all([fill_job(i) for i in later])):
-            fills[i] = fill
+    used = np.any([w > 0 for w in gap_weights], axis=0) if gap_weights else \
+        np.zeros(len(names), dtype=bool)
+    later = [i for i in order if fills[i] is None and (names[i] not in optional or used[i])]
+    if all(fill is None for fill in fills) and not later:
+        later = [names.index(default)]
+    for i, fill in zip(later, run_all([fill_job(i) for i in later])):
+        fills[i] = fill
     ran = [i for i in range(len(names)) if fills[i] is not None]
 
     # The default's fill takes the end gaps; where it was not run (``optional``), that of
