@@ -639,10 +639,10 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     optional
         Names of candidates not run on the real mask when the weights give them no weight
         on any gap (on a clip validating itself, their runs there wait for the
-        validation); such a candidate also drops out of the
-        panel of the outlier rule, and if it is the ``default``, the end gaps take the
-        fill of the candidate run with the most weight over the gaps. For the windows of
-        long clips, where the costly candidates often get no weight at all.
+        validation). Such a candidate also drops out of the panel of the outlier rule,
+        and if it is the ``default``, the end gaps take the fill of the candidate run with
+        the most weight over the gaps. For the windows of long clips, where the costly
+        candidates often get no weight at all.
 
     Returns
     -------
