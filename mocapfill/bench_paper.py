@@ -41,6 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._blas import VARIABLES
 from .bench import SHARED_DATA
 
 # Clips of ../shared/data/cmu by name. 10_01 (801 frames) is the paper's 'score' motion;
@@ -377,9 +378,7 @@ def blas_threads(count: int | None):
 
     names = [info["internal_api"] for info in threadpool_info() if info["user_api"] == "blas"]
     if count is None or not names:
-        env = ", ".join(f"{k}={os.environ[k]}" for k in
-                        ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-                        if k in os.environ)
+        env = ", ".join(f"{k}={os.environ[k]}" for k in VARIABLES if k in os.environ)
         yield env or "library default (all cores)"
         return
     with threadpool_limits(limits=int(count), user_api="blas"):

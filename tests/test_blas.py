@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from mocapfill._blas import VARIABLES
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -77,8 +79,14 @@ def run_script(extra_env: dict[str, str] | None = None) -> dict:
     return json.loads(done.stdout)
 
 
-def test_repair_and_parallel_sections_run_blas_on_one_thread_then_restore():
-    out = run_script()
+@pytest.fixture(scope="module")
+def unset() -> dict:
+    """The script's findings with no BLAS variable set (one interpreter for the tests)."""
+    return run_script()
+
+
+def test_repair_and_parallel_sections_run_blas_on_one_thread_then_restore(unset):
+    out = unset
     assert out["before"] == [3]
     assert out["repair"] == [[1]]
     assert out["after_repair"] == [3]
@@ -87,14 +95,14 @@ def test_repair_and_parallel_sections_run_blas_on_one_thread_then_restore():
     assert out["after_run_all"] == [3]
 
 
-def test_nested_blocks_keep_the_limit_until_the_outermost_leaves():
-    out = run_script()
+def test_nested_blocks_keep_the_limit_until_the_outermost_leaves(unset):
+    out = unset
     assert out["nested_inner_left"] == [1]
     assert out["nested_outer_left"] == [3]
 
 
-def test_a_block_outside_the_main_thread_changes_nothing():
-    out = run_script()
+def test_a_block_outside_the_main_thread_changes_nothing(unset):
+    out = unset
     assert out["other_thread"] == [[3]]
     assert out["after_other_thread"] == [3]
 
