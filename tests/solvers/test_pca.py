@@ -142,3 +142,17 @@ def test_pair_distances_match_a_pair_by_pair_count_mean_and_spread():
             np.testing.assert_allclose(std[i, j], d.std() if d.size else 0.0, atol=1e-12)
     assert count[5, 6] == 0 and mean[5, 6] == 0
     assert pair_distances(points, seen, spread=False)[2] is None
+
+
+@pytest.mark.parametrize("markers", [5, 40, 64, 65, 130])
+def test_visibility_patterns_are_those_of_numpy_unique_in_its_order(markers):
+    # The fill's model budget goes to the frame groups in this order, so the packed-word
+    # grouping must reproduce np.unique(axis=0) exactly, across word boundaries too.
+    rng = np.random.default_rng(markers)
+    visible = rng.random((markers, 400)) < 0.9
+    visible[:, 200:] = visible[:, :200]             # repeated columns: shared patterns
+    visible[rng.integers(markers), :50] = False
+    expected, inverse = np.unique(visible.T, axis=0, return_inverse=True)
+    patterns, groups = pca._patterns(visible)
+    np.testing.assert_array_equal(patterns, expected)
+    np.testing.assert_array_equal(groups, np.asarray(inverse).ravel())
