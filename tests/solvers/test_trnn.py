@@ -347,3 +347,29 @@ def test_rank_from_the_gram_matrix_matches_the_svd(shape):
     assert fast.rank == exact.rank
     np.testing.assert_allclose(fast.singular_values, exact.singular_values,
                                atol=1e-7 * exact.singular_values[0])
+
+
+@pytest.mark.parametrize("skip", [False, True])
+def test_a_window_may_skip_every_unweighted_candidate_but_the_spline(monkeypatch, skip):
+    from mocapfill.solvers import gapwise
+    from mocapfill.solvers.trnn import complete_window
+
+    seen = {}
+    original = gapwise.blend
+
+    def spy(matrix, observed, candidates, **options):
+        seen["names"], seen["optional"] = tuple(candidates), options["optional"]
+        return original(matrix, observed, candidates, **options)
+
+    monkeypatch.setattr(gapwise, "blend", spy)
+    rng = np.random.default_rng(0)
+    t = np.arange(300) / 60.0
+    matrix = np.vstack([np.sin(2 * np.pi * f * t + p) for f, p in rng.uniform(0.2, 1, (12, 2))])
+    observed = np.ones_like(matrix, dtype=bool)
+    observed[3:6, 100:130] = False
+    filled, _ = complete_window(matrix, observed, skip_unweighted=skip)
+    assert "spline" in seen["names"] and "spline" not in seen["optional"]
+    expected = set(seen["names"]) - {"spline"} if skip else set()
+    assert set(seen["optional"]) == expected
+    np.testing.assert_array_equal(filled[observed], matrix[observed])
+    assert np.isfinite(filled).all()
