@@ -232,6 +232,23 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
     return out
 
 
+def _nearest_frames(a: int, b: int, n: int, count: int) -> np.ndarray:
+    """The ``count`` frames outside [a, b) nearest it, in order: as many on each side as
+    the other side allows, the earlier frame first among equally near ones (one-sided
+    near the clip ends). The same frames as sorting all n − (b − a) of them by distance
+    (which cost a sort of the clip's frames for every gap)."""
+    half = (count + 1) // 2                     # the left side's share (it wins ties)
+    before, after = a, n - b                                 # frames available each side
+    if before >= half and after >= count - half:
+        left = half
+    elif before < half:
+        left = before
+    else:
+        left = min(before, count - after)
+    right = min(after, count - left)
+    return np.r_[a - left:a, b:b + right]
+
+
 def regression_fill(matrix: np.ndarray, observed: np.ndarray, *, window: int = 400,
                     ridge: float = 1e-3, min_gap: int = MIN_MODEL_GAP) -> np.ndarray:
     """Local ridge regression on the groups that stay visible during each gap.
@@ -254,10 +271,7 @@ def regression_fill(matrix: np.ndarray, observed: np.ndarray, *, window: int = 4
         predictors = predictors[predictors != g]
         if predictors.size == 0:
             continue
-        # The 2·window frames nearest the gap (one-sided near the clip ends).
-        outside = np.r_[0:a, b:n]
-        frames = np.sort(outside[np.argsort(np.maximum(a - outside, outside - b + 1),
-                                            kind="stable")[:2 * window]])
+        frames = _nearest_frames(a, b, n, 2 * window)
         frames = frames[seen[g, frames] & seen[predictors][:, frames].all(axis=0)]
         if frames.size < 10:
             continue

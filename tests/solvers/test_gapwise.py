@@ -360,3 +360,16 @@ def test_optional_candidates_without_weight_are_not_run_on_the_real_mask():
                       validation=borrowed)
     assert sorted(name for name, _ in calls) == ["exact", "linear"]
     np.testing.assert_allclose(filled, truth, atol=1e-12)
+
+
+def test_nearest_frames_are_those_of_sorting_every_frame_by_distance():
+    from mocapfill.solvers.gapwise import _nearest_frames
+
+    for n in (1, 2, 7, 30):
+        for a in range(n + 1):
+            for b in range(a, n + 1):
+                outside = np.r_[0:a, b:n]
+                distance = np.maximum(a - outside, outside - b + 1)
+                for count in range(0, n + 3):
+                    expected = np.sort(outside[np.argsort(distance, kind="stable")[:count]])
+                    np.testing.assert_array_equal(_nearest_frames(a, b, n, count), expected)
