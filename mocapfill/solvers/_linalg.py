@@ -155,12 +155,23 @@ def linear_fill(matrix: np.ndarray, observed: np.ndarray) -> np.ndarray:
     observed = np.asarray(observed, dtype=bool)
     out = np.where(observed, matrix, 0.0)
     t = np.arange(matrix.shape[1], dtype=np.float64)
-    for row in range(matrix.shape[0]):
-        mask = observed[row]
+    m = matrix.shape[0]
+    start = 0
+    while start < m:
+        # Consecutive rows with one mask (a marker's x, y, z) share its index arrays.
+        mask = observed[start]
+        stop = start + 1
+        while stop < m and np.array_equal(observed[stop], mask):
+            stop += 1
+        rows, start = range(start, stop), stop
         if mask.all() or not mask.any():
             continue
-        # np.interp holds the first/last value beyond the data range.
-        out[row, ~mask] = np.interp(t[~mask], t[mask], matrix[row, mask])
+        missing = np.flatnonzero(~mask)
+        present = np.flatnonzero(mask)
+        t_missing, t_present = t[missing], t[present]
+        for row in rows:
+            # np.interp holds the first/last value beyond the data range.
+            out[row, missing] = np.interp(t_missing, t_present, matrix[row, present])
     return out
 
 
