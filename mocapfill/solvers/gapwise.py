@@ -197,7 +197,8 @@ def distance_spread(P: np.ndarray, seen: np.ndarray) -> np.ndarray:
 
 
 def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
-               min_gap: int = MIN_MODEL_GAP) -> np.ndarray | None:
+               min_gap: int = MIN_MODEL_GAP, only: frozenset | None = None
+               ) -> np.ndarray | None:
     """Rigid-body fill: move the marker with its most rigidly attached visible markers.
 
     For a gap [a, b) of marker j, the ``donors`` markers observed on [a−1, b] whose
@@ -205,7 +206,8 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
     from their positions at frame a−1 to those at every gap frame carries j's position
     at a−1 into the gap, likewise from frame b, and the two are blended linearly so the
     fill meets both ends exactly. Gaps shorter than ``min_gap`` and gaps without enough
-    donors get a linear fill. None when the rows are not markers.
+    donors get a linear fill. None when the rows are not markers. With ``only`` (a set of
+    (marker, start, stop)), other gaps keep the linear fill (:data:`FILLS_GAPS_ALONE`).
     """
     groups = row_groups(observed)
     if groups.shape[1] != 3:
@@ -215,7 +217,7 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
     seen = observed[0::3].T                                          # (n, markers)
     spread_all = distance_spread(P, seen)
     for j, a, b in interior_gaps(observed, groups):
-        if b - a < min_gap:
+        if b - a < min_gap or (only is not None and (j, a, b) not in only):
             continue
         usable = seen[a - 1:b + 1].all(axis=0)
         spread = np.where(usable, spread_all[j], np.inf)
@@ -250,14 +252,16 @@ def _nearest_frames(a: int, b: int, n: int, count: int) -> np.ndarray:
 
 
 def regression_fill(matrix: np.ndarray, observed: np.ndarray, *, window: int = 400,
-                    ridge: float = 1e-3, min_gap: int = MIN_MODEL_GAP) -> np.ndarray:
+                    ridge: float = 1e-3, min_gap: int = MIN_MODEL_GAP,
+                    only: frozenset | None = None) -> np.ndarray:
     """Local ridge regression on the groups that stay visible during each gap.
 
     For a gap [a, b) of group g, the predictors are every other group observed on
     [a−1, b]; the training frames are those within ``window`` frames of the gap where g
     and all predictors are observed. The prediction is corrected by the ramp of its
     offsets at a−1 and b. Shorter gaps (< ``min_gap``) and gaps with fewer than 10 training
-    frames get a linear fill.
+    frames get a linear fill; with ``only`` (a set of (group, start, stop)), so do the
+    gaps not in it (:data:`FILLS_GAPS_ALONE`).
     """
     groups = row_groups(observed)
     gaps = interior_gaps(observed, groups)
@@ -265,7 +269,7 @@ def regression_fill(matrix: np.ndarray, observed: np.ndarray, *, window: int = 4
     seen = observed[groups[:, 0]]                                    # (groups, n)
     n = matrix.shape[1]
     for g, a, b in gaps:
-        if b - a < min_gap:
+        if b - a < min_gap or (only is not None and (g, a, b) not in only):
             continue
         predictors = np.flatnonzero(seen[:, a - 1:b + 1].all(axis=1))
         predictors = predictors[predictors != g]
@@ -290,6 +294,13 @@ def regression_fill(matrix: np.ndarray, observed: np.ndarray, *, window: int = 4
         after = matrix[rows_y, b] - pred[:, -1]
         out[np.ix_(rows_y, np.arange(a, b))] = pred[:, 1:-1] + ramp(before, after, b - a)
     return out
+
+
+# Candidates whose fill of a gap depends on the observed samples alone, never on other
+# gaps' fills: they take ``only=`` (the gaps wanted), and a validation run, which is scored
+# on the stand-ins alone, asks them for those (the real gaps were a third of the per-gap
+# work of a 12,000-frame window's validation run).
+FILLS_GAPS_ALONE = (rigid_fill, regression_fill)
 
 
 # --------------------------------------------------------------------------- validation
@@ -598,10 +609,13 @@ def _gap_weights(gapset: GapSet, weights: dict[int, np.ndarray],
 
 
 def _stand_in_errors(fill_fn: Candidate, blinded: np.ndarray, train: np.ndarray,
-                     matrix: np.ndarray, rows: np.ndarray, frames: np.ndarray) -> np.ndarray:
+                     matrix: np.ndarray, rows: np.ndarray, frames: np.ndarray,
+                     spans: frozenset) -> np.ndarray:
     """A candidate's errors (fill − data) on the hidden samples of the stand-ins, from its
-    validation run: (samples, k) for the rows ``rows`` (samples, k) at ``frames``."""
-    fill = fill_fn(blinded, train)
+    validation run: (samples, k) for the rows ``rows`` (samples, k) at ``frames``. A
+    candidate of :data:`FILLS_GAPS_ALONE` fills the stand-ins' ``spans`` alone."""
+    fill = (fill_fn(blinded, train, only=spans) if fill_fn in FILLS_GAPS_ALONE
+            else fill_fn(blinded, train))
     return fill[rows, frames[:, None]] - matrix[rows, frames[:, None]]
 
 
@@ -701,8 +715,9 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     if hidden:
         blinded = np.where(train, matrix, 0.0)
         sample_rows, sample_frames, bounds = _hidden_samples(hidden, groups, observed)
+        spans = frozenset(span for span, _ in hidden)
         trials = {i: partial(_stand_in_errors, candidates[names[i]], blinded, train, matrix,
-                             sample_rows, sample_frames) for i in order}
+                             sample_rows, sample_frames, spans) for i in order}
 
     def gather(trial_errors: list[np.ndarray]) -> None:
         for index, ((_, a, b), source) in enumerate(hidden):

@@ -373,3 +373,31 @@ def test_nearest_frames_are_those_of_sorting_every_frame_by_distance():
                 for count in range(0, n + 3):
                     expected = np.sort(outside[np.argsort(distance, kind="stable")[:count]])
                     np.testing.assert_array_equal(_nearest_frames(a, b, n, count), expected)
+
+
+@pytest.mark.parametrize("name", ["rigid_fill", "regression_fill"])
+def test_a_per_gap_fill_asked_for_some_gaps_fills_those_exactly_as_in_a_full_run(name):
+    # The validation run asks these candidates for the stand-ins only (FILLS_GAPS_ALONE):
+    # those fills must be the full run's, and the other gaps keep the linear fill.
+    from mocapfill.solvers import gapwise
+    from mocapfill.solvers._linalg import linear_fill
+
+    fill = getattr(gapwise, name)
+    assert fill in gapwise.FILLS_GAPS_ALONE
+    rng = np.random.default_rng(3)
+    t = np.arange(400) / 60.0
+    base = rng.normal(size=(3, 3))
+    turns = np.stack([np.sin(t + p) for p in rng.uniform(0, 6, 3)])      # (3, n)
+    matrix = np.vstack([base @ turns + rng.normal(size=(3, 1)) * 5 for _ in range(6)])
+    gaps = [(0, 50, 80), (2, 120, 160), (4, 200, 212), (0, 300, 340), (5, 10, 13)]
+    observed = _mask(6, 400, gaps)
+    wanted = frozenset([(0, 50, 80), (4, 200, 212), (5, 10, 13)])
+    full = fill(matrix, observed)
+    some = fill(matrix, observed, only=wanted)
+    linear = linear_fill(matrix, observed)
+    for g, a, b in gaps:
+        rows = slice(3 * g, 3 * g + 3)
+        expected = full if (g, a, b) in wanted else linear
+        np.testing.assert_array_equal(some[rows, a:b], expected[rows, a:b])
+    assert not np.array_equal(full[0:3, 300:340], linear[0:3, 300:340])   # a real model
+    np.testing.assert_array_equal(some[observed], matrix[observed])
