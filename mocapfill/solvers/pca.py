@@ -174,8 +174,10 @@ def _patterns(visible: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
                  distal: np.ndarray, complete_markers: np.ndarray, backup_i: np.ndarray, *,
                  min_frames: int, mm_weight: float, min_cum_sv: float,
-                 transform: str, max_models: int | None = None) -> np.ndarray:
-    """Predictions of marker i on its gap frames, (frames, 3), NaN elsewhere."""
+                 transform: str, max_models: int | None = None,
+                 words: np.ndarray | None = None) -> np.ndarray:
+    """Predictions of marker i on its gap frames, (frames, 3), NaN elsewhere. ``words``:
+    ``_bit_rows(mask)``, if the caller has it."""
     k, n = mask.shape
     others = np.array([j for j in range(k) if j != i], dtype=int)
     mask_others = mask[others]
@@ -194,7 +196,7 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
     cost = (~mask & obs_i).sum(axis=1)
     # Each frame's visible markers as bits, so that "i and every predictor observed" is one
     # pass over n words, not a (predictors × n) copy: thousands of starting sets are tried.
-    words = _bit_rows(mask)                                           # (n, w)
+    words = _bit_rows(mask) if words is None else words               # (n, w)
     bits = _bit_rows(np.eye(k, dtype=bool))                           # marker j's bit
 
     def fallback(start: tuple[int, ...]) -> tuple[tuple[int, ...], np.ndarray] | None:
@@ -316,6 +318,7 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, weight_scale: float = 
     dist = _distances(P, mask)
     backup = linear_fill(np.where(obs3, P.reshape(m, n), 0.0), obs3)  # last resort
 
+    words = _bit_rows(mask)        # every frame's visible markers, for every marker's search
     for i in gapped:
         if not mask[i].any():
             continue  # never observed: stays 0
@@ -329,7 +332,7 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, weight_scale: float = 
         distal = ~finite | (d > distal_threshold * mean_d)
         fill = _fill_marker(X, mask, i, weights_all, distal, complete_markers,
                             backup[3 * i:3 * i + 3], min_frames=min_frames,
-                            max_models=max_models,
+                            max_models=max_models, words=words,
                             mm_weight=mm_weight, min_cum_sv=min_cum_sv, transform=transform)
         gap = ~mask[i]
         rows = slice(3 * i, 3 * i + 3)
