@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from mocapfill.errors import NothingToRepair, ParameterError
+from mocapfill.errors import NothingToRepair, ParameterError, SolverError
 from mocapfill.gaps import missing_runs
 from mocapfill.motion import Motion
 from mocapfill.pipeline import RepairOptions, repair
@@ -301,39 +301,85 @@ def fake_windowed_method(matrix, observed, **options):
 
 
 def _fake_windowed(matrix, observed, *, borrowed, **options):
-    if borrowed:
-        WINDOWED_CALLS.append(tuple(borrowed))
-        return fake_windowed_method(matrix, observed), None
-    WINDOWED_CALLS.append("validates")
-    return fake_windowed_method(matrix, observed), len(WINDOWED_CALLS) - 1
+    # A window is named by its first missing sample (row, frame), distinct in the test clip.
+    name = tuple(int(v) for v in np.argwhere(~observed)[0])
+    WINDOWED_CALLS.append((name, tuple(borrowed)))
+    return fake_windowed_method(matrix, observed), (None if borrowed else name)
 
 
 fake_windowed_method.windowed = _fake_windowed
 
 
-def test_windows_between_validated_ones_borrow_their_neighbours_validations(monkeypatch):
+@pytest.mark.parametrize("threads", ["1", "2", "3"])
+def test_windows_between_validated_ones_borrow_their_neighbours_validations(monkeypatch,
+                                                                            threads):
     from mocapfill import pipeline
     from mocapfill.solvers import METHODS
 
     monkeypatch.setitem(METHODS, "lender", "tests.test_pipeline:fake_windowed_method")
     monkeypatch.setattr(pipeline, "VALIDATE_EVERY", 2)
+    monkeypatch.setenv("MOCAPFILL_THREADS", threads)
     WINDOWED_CALLS.clear()
     truth = smooth_clip(4700, 5)
     gapped = truth
     for marker, start in [(0, 300), (1, 1200), (2, 2000), (3, 2900), (4, 3500), (0, 4400)]:
         gapped = with_gap(gapped, marker, start, start + 70)
     matrix, observed = gapped.matrix()
-    assert len(pipeline.window_bounds(4700, 1000, 200)) == 6
+    bounds = pipeline.window_bounds(4700, 1000, 200)
+    assert len(bounds) == 6
+    names = [tuple(int(v) for v in np.argwhere(~observed[:, a:b])[0]) for a, b in bounds]
     got = pipeline.complete_matrix(matrix, observed, "lender", window_frames=1000,
                                    window_overlap=200)
-    # Windows 0, 2, 4 and the last validate themselves (calls 0, 1, 3, 5); window 1 is
-    # lent those of 0 and 2 (so 2 is solved before it), window 3 those of 2 and 4.
-    assert WINDOWED_CALLS == ["validates", "validates", (0, 1), "validates", (1, 3),
-                              "validates"]
-    # Solving ahead and holding a window does not change how the windows are stitched.
+    # Windows 0, 2, 4 and the last validate themselves; window 1 is lent the validations
+    # of 0 and 2, window 3 those of 2 and 4. Each window is solved once.
+    calls = dict(WINDOWED_CALLS)
+    assert len(WINDOWED_CALLS) == 6 and set(calls) == set(names)
+    assert {names.index(n) for n, lent in calls.items() if not lent} == {0, 2, 4, 5}
+    assert calls[names[1]] == (names[0], names[2])
+    assert calls[names[3]] == (names[2], names[4])
+    # Solving ahead and holding windows does not change how the windows are stitched.
     expected = pipeline.complete_matrix(matrix, observed, "spline", window_frames=1000,
                                         window_overlap=200)
     np.testing.assert_array_equal(got, expected)
+
+
+def test_a_windowed_repair_is_the_same_whatever_the_thread_count(monkeypatch):
+    from mocapfill import pipeline
+
+    clip = smooth_clip(2000, 5)
+    for marker, start in [(0, 150), (1, 500), (2, 900), (3, 1300), (4, 1700), (1, 1850)]:
+        clip = with_gap(clip, marker, start, start + 40)
+    matrix, observed = clip.matrix()
+    fills = []
+    for threads in ("1", "2"):
+        monkeypatch.setenv("MOCAPFILL_THREADS", threads)
+        fills.append(pipeline.complete_matrix(matrix, observed, "trnn", window_frames=600,
+                                              window_overlap=100))
+    assert len(pipeline.window_bounds(2000, 600, 100)) >= 3
+    np.testing.assert_array_equal(fills[0], fills[1])
+    assert np.isfinite(fills[0]).all()
+
+
+def test_a_failing_validated_window_fails_the_clip_with_its_own_error(monkeypatch):
+    from mocapfill import pipeline
+    from mocapfill.solvers import METHODS
+
+    def broken(matrix, observed, *, borrowed, **options):
+        if not borrowed and observed[:, -1].all() and not observed.all():
+            raise SolverError("window broke")
+        return _fake_windowed(matrix, observed, borrowed=borrowed)
+
+    monkeypatch.setitem(METHODS, "lender", "tests.test_pipeline:fake_windowed_method")
+    monkeypatch.setattr(fake_windowed_method, "windowed", broken)
+    monkeypatch.setattr(pipeline, "VALIDATE_EVERY", 2)
+    monkeypatch.setenv("MOCAPFILL_THREADS", "2")
+    clip = smooth_clip(4700, 5)
+    for marker, start in [(0, 300), (1, 1200), (2, 2000), (3, 2900), (4, 3500), (0, 4400)]:
+        clip = with_gap(clip, marker, start, start + 70)
+    matrix, observed = clip.matrix()
+    with pytest.raises(SolverError, match="window broke"):
+        pipeline.complete_matrix(matrix, observed, "lender", window_frames=1000,
+                                 window_overlap=200)
 
 
 def test_clip_with_every_sample_missing_is_refused():
