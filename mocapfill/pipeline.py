@@ -387,7 +387,8 @@ def _jump_thresholds(values: np.ndarray, observed: np.ndarray, markers: list[int
     return moving, still
 
 
-# Markers whose jump thresholds are computed together (memory: a few frames × 3 × this).
+# Markers whose jump thresholds are computed together (each temporary: frames × 3 × this
+# many floats).
 _THRESHOLD_CHUNK = 4
 
 
