@@ -115,11 +115,18 @@ class Motion:
         x row is True.
         """
         idx = np.arange(self.n_markers) if markers is None else np.asarray(markers)
-        positions = self.positions.copy()
         observed = self.observed.copy()
-        positions[:, idx, :] = data.reshape(len(idx), 3, self.n_frames).transpose(2, 0, 1)
         observed[:, idx] = mask[0::3].T
-        return self.with_positions(positions, observed)
+        return self.with_positions(self.positions_from_matrix(data, idx), observed)
+
+    def positions_from_matrix(self, data: np.ndarray, markers: np.ndarray | None = None
+                              ) -> np.ndarray:
+        """A copy of the positions (frames, markers, 3) whose selected markers take the
+        values of a (3·k × frames) matrix; no Motion is built (nor its mask checked)."""
+        idx = np.arange(self.n_markers) if markers is None else np.asarray(markers)
+        positions = self.positions.copy()
+        positions[:, idx, :] = data.reshape(len(idx), 3, self.n_frames).transpose(2, 0, 1)
+        return positions
 
 
 def from_matrix(data: np.ndarray, observed: np.ndarray | None = None, *, rate: float = 120.0,

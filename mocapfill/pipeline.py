@@ -483,11 +483,9 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     matrix, observed = motion.matrix(evidence)
     solved = _complete_clip(motion, matrix, observed, options)
     del matrix                      # long clips: free each full-size copy once it is used
-    # The solved markers' rows back into (frames, markers, 3), the others as read (what
-    # Motion.with_matrix gives, without building and checking a Motion: two passes over
-    # the clip fewer).
-    filled = motion.positions.copy()
-    filled[:, evidence, :] = solved.reshape(len(evidence), 3, motion.n_frames).transpose(2, 0, 1)
+    # The solved markers' rows back into (frames, markers, 3), the others as read, without
+    # building and checking a Motion (two passes over the clip fewer).
+    filled = motion.positions_from_matrix(solved, evidence)
     del solved, observed
 
     # ``filled`` becomes the result: accepted fills stay, everything else is put back from

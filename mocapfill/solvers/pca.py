@@ -174,10 +174,11 @@ def _patterns(visible: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
                  distal: np.ndarray, complete_markers: np.ndarray, backup_i: np.ndarray, *,
                  min_frames: int, mm_weight: float, min_cum_sv: float,
-                 transform: str, max_models: int | None = None,
-                 words: np.ndarray | None = None) -> np.ndarray:
-    """Predictions of marker i on its gap frames, (frames, 3), NaN elsewhere. ``words``:
-    ``_bit_rows(mask)``, if the caller has it."""
+                 transform: str, words: np.ndarray, bits: np.ndarray,
+                 max_models: int | None = None) -> np.ndarray:
+    """Predictions of marker i on its gap frames, (frames, 3), NaN elsewhere. ``words`` is
+    ``_bit_rows(mask)``, every frame's visible markers, and ``bits`` each marker's bit
+    (both the same for every marker of the clip)."""
     k, n = mask.shape
     others = np.array([j for j in range(k) if j != i], dtype=int)
     mask_others = mask[others]
@@ -194,10 +195,8 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
     # Frames where i is observed and marker j is not: what keeping j as a predictor costs
     # in training frames (the fallback drops the gapped predictor that costs most).
     cost = (~mask & obs_i).sum(axis=1)
-    # Each frame's visible markers as bits, so that "i and every predictor observed" is one
-    # pass over n words, not a (predictors × n) copy: thousands of starting sets are tried.
-    words = _bit_rows(mask) if words is None else words               # (n, w)
-    bits = _bit_rows(np.eye(k, dtype=bool))                           # marker j's bit
+    # "i and every predictor observed" is one pass over the n words of the frames' visible
+    # markers, not a (predictors × n) copy: thousands of starting sets are tried.
 
     def fallback(start: tuple[int, ...]) -> tuple[tuple[int, ...], np.ndarray] | None:
         """The predictors with enough training frames, and those frames; None if none."""
@@ -318,7 +317,8 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, weight_scale: float = 
     dist = _distances(P, mask)
     backup = linear_fill(np.where(obs3, P.reshape(m, n), 0.0), obs3)  # last resort
 
-    words = _bit_rows(mask)        # every frame's visible markers, for every marker's search
+    # Every frame's visible markers as bits (n, w), and each marker's bit, for the searches.
+    words, bits = _bit_rows(mask), _bit_rows(np.eye(k, dtype=bool))
     for i in gapped:
         if not mask[i].any():
             continue  # never observed: stays 0
@@ -332,7 +332,7 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, weight_scale: float = 
         distal = ~finite | (d > distal_threshold * mean_d)
         fill = _fill_marker(X, mask, i, weights_all, distal, complete_markers,
                             backup[3 * i:3 * i + 3], min_frames=min_frames,
-                            max_models=max_models, words=words,
+                            max_models=max_models, words=words, bits=bits,
                             mm_weight=mm_weight, min_cum_sv=min_cum_sv, transform=transform)
         gap = ~mask[i]
         rows = slice(3 * i, 3 * i + 3)
