@@ -103,9 +103,9 @@ def _floor_for(method: str, m: int, n: int) -> float:
     """The floor of the iteration ``method`` runs: the default ``trnn`` iterates in float32
     on the clip padded to a fast DCT length, ``trnn-paper`` in float64 on the clip as is."""
     if method == "trnn":
-        from .solvers.trnn import _fast_length
+        from .solvers._linalg import fast_length
 
-        return iteration_floor_ms(m, _fast_length(n), dtype=np.float32)
+        return iteration_floor_ms(m, fast_length(n), dtype=np.float32)
     return iteration_floor_ms(m, n)
 
 

@@ -134,6 +134,34 @@ def temporal_solve(b: np.ndarray, eta: float, mu: float) -> np.ndarray:
     return idct(coefficients, type=2, norm="ortho", axis=-1, overwrite_x=True)
 
 
+def fast_length(n: int) -> int:
+    """The smallest length ≥ n the DCT handles fast (only 2, 3, 5 as prime factors)."""
+    from scipy.fft import next_fast_len
+
+    return next_fast_len(n, real=True)
+
+
+def padded_to_fast_length(matrix: np.ndarray, observed: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """``matrix`` (its missing entries zeroed) and ``observed`` with wholly unobserved
+    frames appended up to :func:`fast_length`; the inputs themselves where none are needed.
+
+    The temporal step's DCT is slow for lengths with large prime factors (123 rows: 4300 =
+    2²·5²·43 takes 10 ms, 4320 = 2⁵·3³·5 3.6 ms; 4499 = 11·409 needs the banded solve);
+    the extra frames only move the free end condition of the temporal term past the clip's
+    last frame.
+    """
+    m, n = matrix.shape
+    padded = fast_length(n)
+    if padded == n:
+        return matrix, observed
+    big = np.zeros((m, padded))
+    big[:, :n] = np.where(observed, matrix, 0.0)
+    seen = np.zeros((m, padded), dtype=bool)
+    seen[:, :n] = observed
+    return big, seen
+
+
 @lru_cache(maxsize=8)
 def _cached_eigenvalues(n: int) -> np.ndarray:
     values = second_difference_eigenvalues(n)

@@ -123,6 +123,28 @@ def join_ends(fill: np.ndarray, matrix: np.ndarray, observed: np.ndarray,
     return out
 
 
+def held_short_runs(observed: np.ndarray, groups: np.ndarray, min_gap: int) -> np.ndarray:
+    """The mask with every missing run shorter than ``min_gap`` frames counted as observed.
+
+    One pass over the whole mask (random occlusion gives tens of thousands of runs).
+    """
+    k, n = groups.shape[0], observed.shape[1]
+    edges = np.zeros((k, n + 2), dtype=np.int8)
+    edges[:, 1:-1] = ~observed[groups[:, 0]]
+    step = np.diff(edges, axis=1)                       # +1 where a run starts, −1 after it
+    group, start = np.nonzero(step == 1)
+    stop = np.nonzero(step == -1)[1]                    # same row-major order as the starts
+    short = stop - start < min_gap
+    marks = np.zeros((k, n + 1), dtype=np.int32)
+    np.add.at(marks, (group[short], start[short]), 1)
+    np.add.at(marks, (group[short], stop[short]), -1)
+    hold = np.cumsum(marks[:, :n], axis=1) > 0          # (groups, frames)
+    held = observed.copy()
+    for column in range(groups.shape[1]):
+        held[groups[:, column]] |= hold
+    return held
+
+
 # --------------------------------------------------------------------------- candidates
 
 def odd_spline_fill(matrix: np.ndarray, observed: np.ndarray, *, degree: int = 5

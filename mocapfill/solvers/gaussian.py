@@ -197,33 +197,11 @@ def _smooth(rows: np.ndarray, sigma: float) -> np.ndarray:
     return np.stack([np.convolve(row, kernel, mode="valid") for row in padded])
 
 
-def _held_short_runs(observed: np.ndarray, groups: np.ndarray, min_gap: int) -> np.ndarray:
-    """The mask with every missing run shorter than ``min_gap`` frames counted as observed.
-
-    One pass over the whole mask (random occlusion gives tens of thousands of runs).
-    """
-    k, n = groups.shape[0], observed.shape[1]
-    edges = np.zeros((k, n + 2), dtype=np.int8)
-    edges[:, 1:-1] = ~observed[groups[:, 0]]
-    step = np.diff(edges, axis=1)                       # +1 where a run starts, −1 after it
-    group, start = np.nonzero(step == 1)
-    stop = np.nonzero(step == -1)[1]                    # same row-major order as the starts
-    short = stop - start < min_gap
-    marks = np.zeros((k, n + 1), dtype=np.int32)
-    np.add.at(marks, (group[short], start[short]), 1)
-    np.add.at(marks, (group[short], stop[short]), -1)
-    hold = np.cumsum(marks[:, :n], axis=1) > 0          # (groups, frames)
-    held = observed.copy()
-    for column in range(groups.shape[1]):
-        held[groups[:, column]] |= hold
-    return held
-
-
 def iteration_cost(observed: np.ndarray, *, min_gap: int = 5) -> tuple[float, float]:
     """Multiply-adds of one EM iteration of :func:`gap_fill`: (missing sets, dense part)."""
-    from .gapwise import row_groups
+    from .gapwise import held_short_runs, row_groups
 
-    held = _held_short_runs(observed, row_groups(observed), min_gap)
+    held = held_short_runs(observed, row_groups(observed), min_gap)
     m, n = observed.shape
     sets = sum(p.counts.size * p.rows.shape[1] ** 3 + p.frames.size * p.rows.shape[1] * m
                for p in _missing_sets(~held))
@@ -254,13 +232,13 @@ def gap_fill(matrix: np.ndarray, observed: np.ndarray, *, min_gap: int = 5,
       prediction at the gap ends instead (as if it were hidden there) 2.30 — those
       offsets do not persist into the gap.
     """
-    from .gapwise import GapSet, interior_gaps, join_ends, row_groups
+    from .gapwise import GapSet, held_short_runs, interior_gaps, join_ends, row_groups
     from .interp import spline
     from .lowrank import low_rank_start
     from .trnn import paper_rank
 
     groups = row_groups(observed)
-    held = _held_short_runs(observed, groups, min_gap)
+    held = held_short_runs(observed, groups, min_gap)
     # The spline's values are read on the held short runs only (where there are none, as
     # in clips of long gaps only, the spline is not run: 30 runs on a 30-minute clip).
     base = np.where(observed, matrix,

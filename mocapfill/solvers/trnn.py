@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._linalg import linear_fill, temporal_solve, times_spd_inverse
+from ._linalg import linear_fill, padded_to_fast_length, temporal_solve, times_spd_inverse
 
 if TYPE_CHECKING:
     from .gapwise import Validation
@@ -328,30 +328,14 @@ def complete_lowrank(matrix: np.ndarray, observed: np.ndarray, *, rank: int | No
     matrix = np.where(observed, matrix, 0.0)
     lam = 100.0 / np.sqrt(max(m, n)) if lam is None else lam
     r = paper_rank(matrix, observed, rank)
-    # The M step's DCT is slow for lengths with large prime factors (123 rows: 4300 = 2²·5²·43
-    # takes 10 ms, 4320 = 2⁵·3³·5 3.6 ms; 4499 = 11·409 needs the banded solve): solve on a
-    # few extra, wholly unobserved frames up to the next fast length instead. They only move
-    # the free end condition of the temporal term past the clip's last frame.
-    padded = _fast_length(n)
-    big, seen = matrix, observed
-    if padded != n:
-        big = np.zeros((m, padded))
-        big[:, :n] = matrix
-        seen = np.zeros((m, padded), dtype=bool)
-        seen[:, :n] = observed
+    # Solved on a few extra, wholly unobserved frames up to the DCT's next fast length.
+    big, seen = padded_to_fast_length(matrix, observed)
     X0 = low_rank_start(big, seen, rank=r)
     result = trnn(big, seen, rank=r, d=d, lam=lam, mu=mu, rho=rho, eta0=eta0,
                   eta_max=eta_max, tol=tol, max_iter=max_iter, X0=X0, dtype=dtype)
     groups = row_groups(observed)
     return join_ends(result.X[:, :n], matrix, observed,
                      GapSet(groups, interior_gaps(observed, groups)))
-
-
-def _fast_length(n: int) -> int:
-    """The smallest length ≥ n the DCT handles fast (only 2, 3, 5 as prime factors)."""
-    from scipy.fft import next_fast_len
-
-    return next_fast_len(n, real=True)
 
 
 def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,

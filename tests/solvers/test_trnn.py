@@ -148,10 +148,11 @@ def test_float32_iteration_matches_float64_and_returns_float64():
 
 
 def test_padding_to_a_fast_dct_length_keeps_the_shape_and_observed_entries():
-    from mocapfill.solvers.trnn import _fast_length, complete_lowrank
+    from mocapfill.solvers._linalg import fast_length
+    from mocapfill.solvers.trnn import complete_lowrank
 
     for n in (227, 409, 4300, 4499):      # primes and lengths with large prime factors
-        fast = _fast_length(n)
+        fast = fast_length(n)
         assert fast >= n and fast - n < 0.05 * n + 8
         rest = fast
         for p in (2, 3, 5):
