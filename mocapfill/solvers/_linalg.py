@@ -87,8 +87,9 @@ def _gram_svt(x: np.ndarray, tau: float) -> tuple[np.ndarray, int]:
     if rank == 0:
         return np.zeros_like(x), 0
     u = u[:, keep]
-    shrunk = (u * ((sigma[keep] - tau) / sigma[keep])) @ (u.T @ short)
-    return (shrunk if wide else shrunk.T), rank
+    # One product with the whole matrix: the short side's projector, shrunk, times x.
+    shrink = (u * ((sigma[keep] - tau) / sigma[keep])) @ u.T
+    return (shrink @ x if wide else x @ shrink), rank
 
 
 def second_difference_matrix(n: int) -> np.ndarray:

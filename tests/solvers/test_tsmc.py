@@ -40,3 +40,62 @@ def test_beats_linear_interpolation_on_smooth_low_rank():
     out = tsmc.complete(data, observed)
     err, err_lin = rel(out, M, ~observed), rel(interp.linear(data, observed), M, ~observed)
     assert err < 1e-3 and err < 0.01 * err_lin
+
+
+def _scattered(seed: int, m: int, n: int, rate: float) -> np.ndarray:
+    """Observed mask with each marker's samples missing at random (runs of 1-4 frames)."""
+    rng = np.random.default_rng(seed)
+    lost = rng.random((m // 3, n)) < rate
+    lost[:, [0, -1]] = False
+    return np.repeat(~lost, 3, axis=0)
+
+
+def test_offered_to_the_default_on_scattered_loss_only(monkeypatch):
+    m, n = 30, 300
+    assert tsmc.offered(_scattered(0, m, n, 0.2))
+    assert not tsmc.offered(marker_gaps(0, m, n, length=40))       # long gaps: 13 % lost
+    assert not tsmc.offered(_scattered(0, m, n, 0.01))              # under 2 % in short runs
+    monkeypatch.setattr(tsmc, "MAX_GRAM_COST", m * m * n - 1)
+    assert not tsmc.offered(_scattered(0, m, n, 0.2))
+
+
+def test_candidate_on_a_padded_length_fills_as_the_model_does():
+    # 409 frames (prime) are solved on 432 = 2⁴·3³, the next fast DCT length: the padding
+    # only frees the temporal term past the last frame.
+    M = smooth_low_rank(2, n=409)
+    observed = _scattered(2, *M.shape, 0.3)
+    data = masked(M, observed)
+    fill = tsmc.gap_fill(data, observed)
+    assert fill.shape == M.shape
+    assert rel(fill, M, ~observed) < 1e-3
+    assert rel(fill, tsmc.complete(data, observed), ~observed) < 1e-3
+
+
+def _textbook_tsmc(D, observed, *, lam, mu, rho, eta0, iterations):
+    """The module docstring's updates written out plainly (X, S, M, Y₁, Y₂ as named)."""
+    PD = np.where(observed, D, 0.0)
+    X = _linalg.linear_fill(D, observed)
+    M, S, Y1, Y2 = X.copy(), np.zeros_like(X), np.zeros_like(X), np.zeros_like(X)
+    eta = eta0
+    for _ in range(iterations):
+        X, _ = _linalg.svt((M + Y1 / eta + PD - S + Y2 / eta) / 2, 1 / (2 * eta))
+        TS = PD - X + Y2 / eta
+        S = np.where(observed, _linalg.soft_threshold(TS, lam / eta), TS)
+        M = _linalg.temporal_solve(eta * X - Y1, eta, mu)
+        Y1 += eta * (M - X)
+        Y2 += eta * (PD - X - S)
+        eta *= rho
+    return X
+
+
+def test_iteration_equals_the_textbook_updates():
+    M = smooth_low_rank(4, n=200)
+    rng = np.random.default_rng(4)
+    D = M + 0.05 * rng.standard_normal(M.shape)
+    D[rng.random(M.shape) < 0.02] += 3.0                 # gross outliers: S is not zero
+    observed = _scattered(4, *M.shape, 0.3)
+    options = dict(lam=0.1, mu=20.0, rho=1.3, eta0=0.05)
+    for iterations in (1, 2, 7, 25):
+        ours = tsmc.complete(D, observed, tol=0.0, max_iter=iterations, **options)
+        plain = _textbook_tsmc(D, observed, iterations=iterations, **options)
+        np.testing.assert_allclose(ours, plain, rtol=0, atol=1e-9 * np.abs(plain).max())
