@@ -143,9 +143,14 @@ def offered(observed: np.ndarray) -> bool:
     return np.count_nonzero(scattered) >= SCATTERED_SHARE * observed.size
 
 
-def gap_fill(matrix: np.ndarray, observed: np.ndarray, *, tol: float = 1e-5,
+def gap_fill(matrix: np.ndarray, observed: np.ndarray, *, tol: float = 1e-4,
              **options) -> np.ndarray:
-    """TSMC as a candidate of the default's per-gap blend.
+    """TSMC as a candidate of the default's per-gap blend, to ε = 1e−4.
+
+    In the blend, on the random-loss cells of ``bench accuracy`` (mean RMSE of seeds 0–2),
+    ε = 1e−4 against 1e−5: 02_05 mr = 0.4 0.4260 against 0.4245 mm (the blend without it
+    0.4312, TSMC alone 0.4289), 10_01 mr = 0.2 0.7623 against 0.7525; the candidate's run
+    on 02_05 takes 0.6–0.7 against 0.9 s.
 
     Solved, as the TrNN candidate is, on the clip padded with wholly unobserved frames to
     the next length the DCT handles fast (1854 frames of 02_05 → 1875: the temporal step

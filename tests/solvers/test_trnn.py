@@ -374,3 +374,30 @@ def test_a_window_may_skip_every_unweighted_candidate_but_the_spline(monkeypatch
     assert set(seen["optional"]) == expected
     np.testing.assert_array_equal(filled[observed], matrix[observed])
     assert np.isfinite(filled).all()
+
+
+def test_the_default_blends_tsmc_on_scattered_loss_only(monkeypatch):
+    from mocapfill.solvers import gapwise
+    from mocapfill.solvers.trnn import complete
+
+    seen = []
+    original = gapwise.blend
+
+    def spy(matrix, observed, candidates, **options):
+        seen.append(tuple(candidates))
+        return original(matrix, observed, candidates, **options)
+
+    monkeypatch.setattr(gapwise, "blend", spy)
+    rng = np.random.default_rng(1)
+    t = np.arange(300) / 60.0
+    matrix = np.vstack([np.sin(2 * np.pi * f * t + p) for f, p in rng.uniform(0.2, 1, (12, 2))])
+    long_gaps = np.ones_like(matrix, dtype=bool)
+    long_gaps[3:6, 100:130] = False
+    lost = rng.random((4, 300)) < 0.2
+    lost[:, [0, -1]] = False
+    scattered = np.repeat(~lost, 3, axis=0)
+    for observed, offered in ((long_gaps, False), (scattered, True)):
+        filled = complete(matrix, observed)
+        assert ("tsmc" in seen[-1]) == offered
+        np.testing.assert_array_equal(filled[observed], matrix[observed])
+        assert np.isfinite(filled).all()
