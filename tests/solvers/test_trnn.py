@@ -363,47 +363,49 @@ def test_rank_from_the_gram_matrix_matches_the_svd(shape):
                                atol=1e-7 * exact.singular_values[0])
 
 
-@pytest.mark.parametrize("skip", [False, True])
-def test_a_window_may_skip_every_unweighted_candidate_but_the_spline(monkeypatch, skip):
+def _spied_blend(monkeypatch) -> list[tuple[tuple[str, ...], dict]]:
+    """Record the candidates' names and the options of every call to ``gapwise.blend``."""
     from mocapfill.solvers import gapwise
-    from mocapfill.solvers.trnn import complete_window
 
-    seen = {}
+    calls = []
     original = gapwise.blend
 
     def spy(matrix, observed, candidates, **options):
-        seen["names"], seen["optional"] = tuple(candidates), options["optional"]
+        calls.append((tuple(candidates), options))
         return original(matrix, observed, candidates, **options)
 
     monkeypatch.setattr(gapwise, "blend", spy)
-    rng = np.random.default_rng(0)
+    return calls
+
+
+def _sines(seed: int) -> np.ndarray:
+    """12 rows of sines of random frequency and phase over 300 frames."""
+    rng = np.random.default_rng(seed)
     t = np.arange(300) / 60.0
-    matrix = np.vstack([np.sin(2 * np.pi * f * t + p) for f, p in rng.uniform(0.2, 1, (12, 2))])
+    return np.vstack([np.sin(2 * np.pi * f * t + p) for f, p in rng.uniform(0.2, 1, (12, 2))])
+
+
+@pytest.mark.parametrize("skip", [False, True])
+def test_a_window_may_skip_every_unweighted_candidate_but_the_spline(monkeypatch, skip):
+    from mocapfill.solvers.trnn import complete_window
+
+    calls = _spied_blend(monkeypatch)
+    matrix = _sines(0)
     observed = np.ones_like(matrix, dtype=bool)
     observed[3:6, 100:130] = False
     filled, _ = complete_window(matrix, observed, skip_unweighted=skip)
-    assert "spline" in seen["names"] and "spline" not in seen["optional"]
-    expected = set(seen["names"]) - {"spline"} if skip else set()
-    assert set(seen["optional"]) == expected
+    names, options = calls[-1]
+    assert "spline" in names and "spline" not in options["optional"]
+    expected = set(names) - {"spline"} if skip else set()
+    assert set(options["optional"]) == expected
     np.testing.assert_array_equal(filled[observed], matrix[observed])
     assert np.isfinite(filled).all()
 
 
 def test_the_default_blends_tsmc_on_scattered_loss_only(monkeypatch):
-    from mocapfill.solvers import gapwise
-    from mocapfill.solvers.trnn import complete
-
-    seen = []
-    original = gapwise.blend
-
-    def spy(matrix, observed, candidates, **options):
-        seen.append(tuple(candidates))
-        return original(matrix, observed, candidates, **options)
-
-    monkeypatch.setattr(gapwise, "blend", spy)
+    calls = _spied_blend(monkeypatch)
     rng = np.random.default_rng(1)
-    t = np.arange(300) / 60.0
-    matrix = np.vstack([np.sin(2 * np.pi * f * t + p) for f, p in rng.uniform(0.2, 1, (12, 2))])
+    matrix = _sines(1)
     long_gaps = np.ones_like(matrix, dtype=bool)
     long_gaps[3:6, 100:130] = False
     lost = rng.random((4, 300)) < 0.2
@@ -411,6 +413,6 @@ def test_the_default_blends_tsmc_on_scattered_loss_only(monkeypatch):
     scattered = np.repeat(~lost, 3, axis=0)
     for observed, offered in ((long_gaps, False), (scattered, True)):
         filled = complete(matrix, observed)
-        assert ("tsmc" in seen[-1]) == offered
+        assert ("tsmc" in calls[-1][0]) == offered
         np.testing.assert_array_equal(filled[observed], matrix[observed])
         assert np.isfinite(filled).all()
