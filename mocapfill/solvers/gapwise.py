@@ -666,8 +666,10 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     matrix, observed
         The unit-RMS matrix and its mask (solver convention).
     candidates
-        name → fill function; each must return a full matrix that meets the observed
-        samples continuously at gap ends.
+        name → fill function; each returns a full matrix, read on the gaps only. The
+        fills should meet the observed samples continuously at the gap ends (the blend
+        adds no ramp of its own); the default's TSMC candidate on scattered loss is the
+        one that does not (see :func:`mocapfill.solvers.tsmc.gap_fill`).
     default
         Candidate used alone for length classes with no validation evidence at all.
     prior, prior_share

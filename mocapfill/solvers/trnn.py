@@ -343,7 +343,7 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     """Our TrNN: the converged low-rank fill, blended gap by gap with other fillers.
 
     Design (full tables in ``docs/results.md``). Candidate fills, each continuous with the
-    observed samples at both ends of every gap:
+    observed samples at both ends of every gap (all but ``tsmc``, see below):
 
     - ``trnn``: :func:`complete_lowrank` — warm start from the subspace of the complete
       frames (ALS without them), Algorithm 1 converged (d = m, ρ = 1.2, η₀ = 0.05,

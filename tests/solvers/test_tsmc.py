@@ -67,6 +67,7 @@ def test_candidate_on_a_padded_length_fills_as_the_model_does():
     data = masked(M, observed)
     fill = tsmc.gap_fill(data, observed)
     assert fill.shape == M.shape
+    np.testing.assert_array_equal(fill[observed], data[observed])
     assert rel(fill, M, ~observed) < 1e-3
     assert rel(fill, tsmc.complete(data, observed), ~observed) < 1e-3
 
