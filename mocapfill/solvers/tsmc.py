@@ -128,8 +128,10 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, lam: float | None = No
 # leave it out and pay nothing).
 SCATTERED_SHARE = 0.02
 # ... and where one Gram product of its shrinkage (m² · n multiply-adds) stays within this:
-# 6.8e7 on 85_12 (123 rows, 4500 frames), 1.8e8 on a 12,000-frame window of 41 markers.
-MAX_GRAM_COST = 2e8
+# 6.8e7 on 85_12 (123 rows, 4500 frames: 1.2 s per run), so a clip of 41 markers up to
+# about 6,600 frames. A 12,000-frame window of a long clip (1.8e8, some 4 s per run, and
+# two runs in every window that validates) is left to the other candidates.
+MAX_GRAM_COST = 1e8
 
 
 def offered(observed: np.ndarray) -> bool:
