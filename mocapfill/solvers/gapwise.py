@@ -658,7 +658,8 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
           default: str, seed: int = 0, validation_fraction: float = 0.1,
           prior: dict[str, float] | None = None, prior_share: float = 0.5,
           validation: Validation | None = None, costly: tuple[str, ...] = (),
-          optional: tuple[str, ...] = ()) -> tuple[np.ndarray, BlendReport]:
+          optional: tuple[str, ...] = (), validators: dict[str, Candidate] | None = None
+          ) -> tuple[np.ndarray, BlendReport]:
     """Fill every interior gap with a validated convex blend of the candidate fills.
 
     Parameters
@@ -695,6 +696,9 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         and if it is the ``default``, the end gaps take the fill of the candidate run with
         the most weight over the gaps. For the windows of long clips, where the costly
         candidates often get no weight at all.
+    validators
+        name → a cheaper form of that candidate, run in its place on the validation mask
+        only (the windows of long clips: TrNN to a looser tolerance).
 
     Returns
     -------
@@ -740,8 +744,10 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         blinded = np.where(train, matrix, 0.0)
         sample_rows, sample_frames, bounds = _hidden_samples(hidden, groups, observed)
         spans = frozenset(span for span, _ in hidden)
-        trials = {i: partial(_stand_in_errors, candidates[names[i]], blinded, train, matrix,
-                             sample_rows, sample_frames, spans) for i in order}
+        trials = {i: partial(_stand_in_errors, (validators or {}).get(names[i],
+                                                                      candidates[names[i]]),
+                             blinded, train, matrix, sample_rows, sample_frames, spans)
+                  for i in order}
 
     def gather(trial_errors: list[np.ndarray]) -> None:
         for index, ((_, a, b), source) in enumerate(hidden):

@@ -362,6 +362,34 @@ def test_optional_candidates_without_weight_are_not_run_on_the_real_mask():
     np.testing.assert_allclose(filled, truth, atol=1e-12)
 
 
+def test_a_validator_runs_in_place_of_its_candidate_on_the_stand_ins_only():
+    from mocapfill.solvers._linalg import linear_fill
+    from mocapfill.solvers.gapwise import blend
+
+    t = np.arange(600) / 60.0
+    truth = np.vstack([np.sin(0.9 * (j + 1) * t + j) for j in range(18)])   # 6 markers
+    observed = _mask(6, 600, [(0, 100, 130), (2, 300, 320), (4, 450, 460)])
+    matrix = np.where(observed, truth, 0.0)
+    calls: list = []
+    candidates = {"exact": _counting(lambda a, o: truth.copy(), calls, "exact"),
+                  "linear": _counting(linear_fill, calls, "linear")}
+    # The validator of "exact" errs wildly on the stand-ins: "linear" wins the weights, and
+    # the real gaps are filled (almost) as "linear" fills them, although "exact" itself
+    # ran on the real mask.
+    noise = 50.0 * np.random.default_rng(0).standard_normal(truth.shape)
+    validators = {"exact": _counting(lambda a, o: truth + noise, calls, "cheap exact")}
+    filled, report = blend(matrix, observed, candidates, default="exact",
+                           validators=validators)
+    masks = {name: [mask for n, mask in calls if n == name] for name, _ in calls}
+    assert sorted(masks) == ["cheap exact", "exact", "linear"]
+    assert len(masks["cheap exact"]) == 1 and not (masks["cheap exact"][0] == observed).all()
+    assert len(masks["exact"]) == 1 and (masks["exact"][0] == observed).all()
+    assert len(masks["linear"]) == 2
+    linear = linear_fill(matrix, observed)
+    error, linear_error = (np.linalg.norm((f - truth)[~observed]) for f in (filled, linear))
+    assert 0.9 * linear_error < error < 1.1 * linear_error
+
+
 def test_nearest_frames_are_those_of_sorting_every_frame_by_distance():
     from mocapfill.solvers.gapwise import _nearest_frames
 

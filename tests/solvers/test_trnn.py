@@ -398,6 +398,8 @@ def test_a_window_may_skip_every_unweighted_candidate_but_the_spline(monkeypatch
     assert "spline" in names and "spline" not in options["optional"]
     expected = set(names) - {"spline"} if skip else set()
     assert set(options["optional"]) == expected
+    # A window's validation run of TrNN stops at a looser tolerance.
+    assert set(options["validators"] or {}) == ({"trnn"} if skip else set())
     np.testing.assert_array_equal(filled[observed], matrix[observed])
     assert np.isfinite(filled).all()
 
