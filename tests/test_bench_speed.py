@@ -55,3 +55,15 @@ def test_big_cases_are_timed_once_and_without_the_comparison_methods(monkeypatch
                            ("synthetic_10000x300.npz", "tsmc", 1)]
     long_row = next(r for r in rows if "216000" in r.case)
     assert long_row.iterations is None and long_row.runs == 1
+
+
+def test_a_childs_peak_memory_is_its_own_not_the_benchmarks():
+    import sys
+
+    from mocapfill.bench_speed import _run_child
+
+    ballast = np.ones(25_000_000)            # 200 MB resident in this process
+    wall, rss_mb, code = _run_child([sys.executable, "-c", "import sys; sys.exit(3)"])
+    assert ballast[-1] == 1.0
+    assert code == 3 and wall > 0
+    assert 0 < rss_mb < 100                 # a bare interpreter, not this process's 200 MB
