@@ -190,7 +190,7 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
     models: dict[tuple[int, ...], tuple] = {}
     # Where the fallback that drops gapped predictors ends, from each starting set (it
     # depends on that set only; thousands of frame groups share a few starting sets).
-    reached: dict[tuple[int, ...], tuple[tuple[int, ...], np.ndarray] | None] = {}
+    reached: dict[bytes, tuple[tuple[int, ...], np.ndarray] | None] = {}
 
     # Frames where i is observed and marker j is not: what keeping j as a predictor costs
     # in training frames (the fallback drops the gapped predictor that costs most).
@@ -198,10 +198,12 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
     # "i and every predictor observed" is one pass over the n words of the frames' visible
     # markers, not a (predictors × n) copy: thousands of starting sets are tried.
 
-    def fallback(start: tuple[int, ...]) -> tuple[tuple[int, ...], np.ndarray] | None:
-        """The predictors with enough training frames, and those frames; None if none."""
+    def fallback(usable: np.ndarray) -> tuple[tuple[int, ...], np.ndarray] | None:
+        """From the ``usable`` other markers, the predictors with enough training frames,
+        and those frames; None if none."""
+        start = usable.tobytes()            # the memo's key: cheaper than a tuple of ints
         if start not in reached:
-            preds, found = list(start), None
+            preds, found = others[usable].tolist(), None
             while preds:
                 wanted = np.bitwise_or.reduce(bits[preds], axis=0)
                 train = obs_i & ((words & wanted) == wanted).all(axis=1)
@@ -226,10 +228,10 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
     # 2.19 GB once the search memo made that garbage larger.)
     gap = np.flatnonzero(~obs_i)
     todo = [(gap, mask_others[:, gap].all(axis=1), False, True)]
+    allowed = complete_markers[others] | ~distal[others]       # without relaxing
     while todo:
         frames, avail, relax, split = todo.pop()
-        usable = avail & (relax | complete_markers[others] | ~distal[others])
-        found = fallback(tuple(others[usable].tolist()))
+        found = fallback(avail if relax else avail & allowed)
         if found is not None:
             key, train = found
             if key in models or max_models is None or len(models) < max_models:
