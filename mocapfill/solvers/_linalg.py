@@ -145,8 +145,9 @@ def fast_length(n: int) -> int:
 
 def padded_to_fast_length(matrix: np.ndarray, observed: np.ndarray
                           ) -> tuple[np.ndarray, np.ndarray]:
-    """``matrix`` (its missing entries zeroed) and ``observed`` with wholly unobserved
-    frames appended up to :func:`fast_length`; the inputs themselves where none are needed.
+    """``matrix`` and ``observed`` with wholly unobserved frames (zeros) appended up to
+    :func:`fast_length`; the inputs themselves where none are needed. The values on the
+    missing entries are kept as given (the solvers read the observed ones only).
 
     The temporal step's DCT is slow for lengths with large prime factors (123 rows: 4300 =
     2²·5²·43 takes 10 ms, 4320 = 2⁵·3³·5 3.6 ms; 4499 = 11·409 needs the banded solve);
@@ -158,7 +159,7 @@ def padded_to_fast_length(matrix: np.ndarray, observed: np.ndarray
     if padded == n:
         return matrix, observed
     big = np.zeros((m, padded))
-    big[:, :n] = np.where(observed, matrix, 0.0)
+    big[:, :n] = matrix
     seen = np.zeros((m, padded), dtype=bool)
     seen[:, :n] = observed
     return big, seen

@@ -27,6 +27,15 @@ def marker_gaps(seed: int, m: int, n: int, length: int, every: int = 1) -> np.nd
     return observed
 
 
+def scattered(seed: int, m: int, n: int, rate: float) -> np.ndarray:
+    """Observed mask with each marker's samples missing at random (runs of 1-4 frames),
+    never at the first or last frame."""
+    rng = np.random.default_rng(seed)
+    lost = rng.random((m // 3, n)) < rate
+    lost[:, [0, -1]] = False
+    return np.repeat(~lost, 3, axis=0)
+
+
 def masked(M: np.ndarray, observed: np.ndarray) -> np.ndarray:
     return np.where(observed, M, np.nan)
 

@@ -9,6 +9,8 @@ from mocapfill.solvers._linalg import linear_fill, second_difference_matrix, tem
 from mocapfill.solvers.trnn import complete, trnn
 from tests.conftest import shared_file
 
+from ._synth import scattered
+
 
 def test_dct_temporal_step_equals_dense_solve():
     rng = np.random.default_rng(0)
@@ -406,14 +408,10 @@ def test_a_window_may_skip_every_unweighted_candidate_but_the_spline(monkeypatch
 
 def test_the_default_blends_tsmc_on_scattered_loss_only(monkeypatch):
     calls = _spied_blend(monkeypatch)
-    rng = np.random.default_rng(1)
     matrix = _sines(1)
     long_gaps = np.ones_like(matrix, dtype=bool)
     long_gaps[3:6, 100:130] = False
-    lost = rng.random((4, 300)) < 0.2
-    lost[:, [0, -1]] = False
-    scattered = np.repeat(~lost, 3, axis=0)
-    for observed, offered in ((long_gaps, False), (scattered, True)):
+    for observed, offered in ((long_gaps, False), (scattered(1, *matrix.shape, 0.2), True)):
         filled = complete(matrix, observed)
         assert ("tsmc" in calls[-1][0]) == offered
         np.testing.assert_array_equal(filled[observed], matrix[observed])

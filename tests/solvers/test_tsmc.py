@@ -6,7 +6,7 @@ import pytest
 
 from mocapfill.solvers import _linalg, interp, tsmc
 
-from ._synth import marker_gaps, masked, rel, smooth_low_rank
+from ._synth import marker_gaps, masked, rel, scattered, smooth_low_rank
 
 
 # 134 = 2·67 and 409 (prime) take the banded-Cholesky path, the others the DCT.
@@ -42,28 +42,20 @@ def test_beats_linear_interpolation_on_smooth_low_rank():
     assert err < 1e-3 and err < 0.01 * err_lin
 
 
-def _scattered(seed: int, m: int, n: int, rate: float) -> np.ndarray:
-    """Observed mask with each marker's samples missing at random (runs of 1-4 frames)."""
-    rng = np.random.default_rng(seed)
-    lost = rng.random((m // 3, n)) < rate
-    lost[:, [0, -1]] = False
-    return np.repeat(~lost, 3, axis=0)
-
-
 def test_offered_to_the_default_on_scattered_loss_only(monkeypatch):
     m, n = 30, 300
-    assert tsmc.offered(_scattered(0, m, n, 0.2))
+    assert tsmc.offered(scattered(0, m, n, 0.2))
     assert not tsmc.offered(marker_gaps(0, m, n, length=40))       # long gaps: 13 % lost
-    assert not tsmc.offered(_scattered(0, m, n, 0.01))              # under 2 % in short runs
+    assert not tsmc.offered(scattered(0, m, n, 0.01))              # under 2 % in short runs
     monkeypatch.setattr(tsmc, "MAX_GRAM_COST", m * m * n - 1)
-    assert not tsmc.offered(_scattered(0, m, n, 0.2))
+    assert not tsmc.offered(scattered(0, m, n, 0.2))
 
 
 def test_candidate_on_a_padded_length_fills_as_the_model_does():
     # 409 frames (prime) are solved on 432 = 2⁴·3³, the next fast DCT length: the padding
     # only frees the temporal term past the last frame.
     M = smooth_low_rank(2, n=409)
-    observed = _scattered(2, *M.shape, 0.3)
+    observed = scattered(2, *M.shape, 0.3)
     data = masked(M, observed)
     fill = tsmc.gap_fill(data, observed)
     assert fill.shape == M.shape
@@ -94,7 +86,7 @@ def test_iteration_equals_the_textbook_updates():
     rng = np.random.default_rng(4)
     D = M + 0.05 * rng.standard_normal(M.shape)
     D[rng.random(M.shape) < 0.02] += 3.0                 # gross outliers: S is not zero
-    observed = _scattered(4, *M.shape, 0.3)
+    observed = scattered(4, *M.shape, 0.3)
     options = dict(lam=0.1, mu=20.0, rho=1.3, eta0=0.05)
     for iterations in (1, 2, 7, 25):
         ours = tsmc.complete(D, observed, tol=0.0, max_iter=iterations, **options)
