@@ -165,7 +165,7 @@ def odd_spline_fill(matrix: np.ndarray, observed: np.ndarray, *, degree: int = 5
     there, so the blend had trusted the quintic for that length class.
     """
     from ._splines import odd_spline
-    from .interp import _interpolate, cubic_interpolant
+    from .interp import _interpolate, cubic_interpolant, local
 
     support = (degree + 1) // 2
 
@@ -185,7 +185,7 @@ def odd_spline_fill(matrix: np.ndarray, observed: np.ndarray, *, degree: int = 5
             return values
         return evaluate
 
-    return _interpolate(matrix, observed, make)
+    return _interpolate(matrix, observed, local(make))
 
 
 def _xyz(matrix: np.ndarray) -> np.ndarray:

@@ -75,3 +75,30 @@ def test_few_samples_fall_back():
     out = interp.spline(masked(M, observed), observed)
     np.testing.assert_array_equal(out[0], 4.0)
     np.testing.assert_allclose(out[1, 2:8], M[1, 2:8])
+
+
+@pytest.mark.parametrize("degree", [5, 7])
+def test_local_fits_match_the_whole_row_and_follow_the_gaps(degree):
+    """Piecewise fits around far-apart gaps give the whole-row spline's values, and the
+    pieces are separate fits (a row of 6,000 samples is never solved whole)."""
+    from mocapfill.solvers._splines import odd_spline
+
+    rng = np.random.default_rng(3)
+    n = 6000
+    t = np.arange(n, dtype=np.float64)
+    y = np.cumsum(rng.normal(size=(n, 3)), axis=0) + 50 * np.sin(t / 40)[:, None]
+    seen = np.ones(n, dtype=bool)
+    for start in (300, 1700, 1760, 4000, 5900):      # 1700 and 1760 share a fit
+        seen[start:start + rng.integers(3, 60)] = False
+    seen[3000:4500:2] = False                        # a scattered stretch: one fit
+    asked = t[~seen]
+    sizes = []
+
+    def spy(t_obs, y_obs):
+        sizes.append(t_obs.size)
+        return odd_spline(t_obs, y_obs, degree)
+
+    pieces = interp.local(spy)(t[seen], y[seen])(asked)
+    whole = odd_spline(t[seen], y[seen], degree)(asked)
+    np.testing.assert_allclose(pieces, whole, rtol=0, atol=1e-12 * np.abs(y).max())
+    assert len(sizes) == 4 and max(sizes) < seen.sum() / 2
