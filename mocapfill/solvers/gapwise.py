@@ -298,7 +298,7 @@ def regression_fill(matrix: np.ndarray, observed: np.ndarray, *, window: int = 4
         if predictors.size == 0:
             continue
         frames = _nearest_frames(a, b, n, 2 * window)
-        frames = frames[seen[g, frames] & seen[predictors][:, frames].all(axis=0)]
+        frames = frames[seen[g, frames] & seen[np.ix_(predictors, frames)].all(axis=0)]
         if frames.size < 10:
             continue
         rows_x = groups[predictors].ravel()
@@ -308,7 +308,7 @@ def regression_fill(matrix: np.ndarray, observed: np.ndarray, *, window: int = 4
         a_mean, y_mean = A.mean(axis=0), y.mean(axis=0)
         A0 = A - a_mean
         gram = A0.T @ A0
-        gram[np.diag_indices_from(gram)] += ridge * frames.size
+        gram.flat[::gram.shape[0] + 1] += ridge * frames.size
         coef = np.linalg.solve(gram, A0.T @ (y - y_mean))
         span = np.arange(a - 1, b + 1)
         pred = ((matrix[np.ix_(rows_x, span)].T - a_mean) @ coef + y_mean).T   # (k, L+2)
