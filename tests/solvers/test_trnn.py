@@ -365,15 +365,15 @@ def test_rank_from_the_gram_matrix_matches_the_svd(shape):
                                atol=1e-7 * exact.singular_values[0])
 
 
-def _spied_blend(monkeypatch) -> list[tuple[tuple[str, ...], dict]]:
-    """Record the candidates' names and the options of every call to ``gapwise.blend``."""
+def _spied_blend(monkeypatch) -> list[tuple[dict, dict]]:
+    """Record the candidates and the options of every call to ``gapwise.blend``."""
     from mocapfill.solvers import gapwise
 
     calls = []
     original = gapwise.blend
 
     def spy(matrix, observed, candidates, **options):
-        calls.append((tuple(candidates), options))
+        calls.append((dict(candidates), options))
         return original(matrix, observed, candidates, **options)
 
     monkeypatch.setattr(gapwise, "blend", spy)
@@ -389,7 +389,7 @@ def _sines(seed: int) -> np.ndarray:
 
 @pytest.mark.parametrize("skip", [False, True])
 def test_a_window_may_skip_every_unweighted_candidate_but_the_spline(monkeypatch, skip):
-    from mocapfill.solvers.trnn import complete_window
+    from mocapfill.solvers.trnn import PCA_MODELS, WINDOW_PCA_MODELS, complete_window
 
     calls = _spied_blend(monkeypatch)
     matrix = _sines(0)
@@ -400,8 +400,10 @@ def test_a_window_may_skip_every_unweighted_candidate_but_the_spline(monkeypatch
     assert "spline" in names and "spline" not in options["optional"]
     expected = set(names) - {"spline"} if skip else set()
     assert set(options["optional"]) == expected
-    # A window's validation run of TrNN stops at a looser tolerance.
+    # A window's validation run of TrNN stops at a looser tolerance, and its PCA has the
+    # smaller model budget.
     assert set(options["validators"] or {}) == ({"trnn"} if skip else set())
+    assert names["pca"].keywords["max_models"] == (WINDOW_PCA_MODELS if skip else PCA_MODELS)
     np.testing.assert_array_equal(filled[observed], matrix[observed])
     assert np.isfinite(filled).all()
 
