@@ -70,7 +70,8 @@ def _interpolate(matrix, observed, make) -> np.ndarray:
     return out
 
 
-# Samples either side of a stretch of asked-for times that :func:`local` fits on.
+# :func:`local`: the samples fitted either side of a stretch of asked-for times, and the
+# samples between two stretches below which they share one fit.
 LOCAL_REACH = 128
 LOCAL_BRIDGE = 512
 
@@ -98,6 +99,9 @@ def local(make, reach: int = LOCAL_REACH, bridge: int = LOCAL_BRIDGE):
             return make(t_obs, y_obs)
 
         def evaluate(t: np.ndarray) -> np.ndarray:
+            values = np.empty((t.size, *y_obs.shape[1:]))
+            if t.size == 0:
+                return values
             at = np.searchsorted(t_obs, t)
             lo = np.maximum(at - reach, 0)
             hi = np.minimum(at + reach, t_obs.size)
@@ -105,7 +109,6 @@ def local(make, reach: int = LOCAL_REACH, bridge: int = LOCAL_BRIDGE):
             # each other (lo never decreases) share a fit.
             starts = np.flatnonzero(np.r_[True, lo[1:] > hi[:-1] + bridge])
             stops = np.r_[starts[1:], t.size]
-            values = np.empty((t.size, *y_obs.shape[1:]))
             for a, b in zip(starts, stops):
                 piece = slice(lo[a], hi[b - 1])
                 values[a:b] = make(t_obs[piece], y_obs[piece])(t[a:b])

@@ -102,3 +102,4 @@ def test_local_fits_match_the_whole_row_and_follow_the_gaps(degree):
     whole = odd_spline(t[seen], y[seen], degree)(asked)
     np.testing.assert_allclose(pieces, whole, rtol=0, atol=1e-12 * np.abs(y).max())
     assert len(sizes) == 4 and max(sizes) < seen.sum() / 2
+    assert interp.local(spy)(t[seen], y[seen])(np.empty(0)).shape == (0, 3)
