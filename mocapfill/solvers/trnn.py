@@ -302,8 +302,8 @@ LOWRANK_TOL = 1e-4
 # PCA models per gapped marker in the default's PCA candidate (``pca.complete``'s
 # ``max_models``), on a clip repaired whole and in the windows of a long clip. In the
 # windows of the bench's 30-minute synthetic clip (every marker gapped, the gaps
-# overlapping in many combinations) PCA spent the whole budget on every marker and was a
-# third of a validating window's time; with 4 models instead of 8 its runs there take
+# overlapping in many combinations) PCA spent the whole budget on every marker and took
+# over a quarter of a validating window's time; with 4 models instead of 8 its runs there take
 # 1.1–1.3 s instead of 1.8–2.5 s, and the repairs' errors stay the same: the synthetic
 # clip 2.7351 mm either way, the real 41,958-frame clip 12.1717 / 11.6758 → 12.1723 /
 # 11.6752 mm (seeds 0 / 1), a real 111,788-frame one 12.0187 → 12.0162 mm. Clips
