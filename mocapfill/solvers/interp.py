@@ -84,7 +84,11 @@ def local(make, reach: int = LOCAL_REACH, bridge: int = LOCAL_BRIDGE):
     with the number of samples in between; for the degree-7 spline (the slowest decay of
     the three) the change from fitting on 96 samples either side instead of the whole row
     was at most 2e−16 of the data's range, on rows with 20–70 % of samples missing and gaps
-    of up to 100 frames (128 are taken). Times whose reaches overlap, or come within
+    of up to 100 frames (128 are taken). In :func:`_interpolate` every missing frame
+    between a row's first and last sample is asked for, so the samples a fit takes beyond
+    its last asked time are consecutive frames, the evenly spaced case (60 random rows of
+    2,600–6,000 frames, gapped sparsely, densely, in clusters and with growing spacing:
+    no value changed at all). Times whose reaches overlap, or come within
     ``bridge`` samples of each other, share one fit (a fit of a few hundred samples costs
     about as much as 700 more samples in a longer one), so scattered loss fits the whole
     row once, as before. The times must be increasing.
