@@ -429,3 +429,35 @@ def test_a_per_gap_fill_asked_for_some_gaps_fills_those_exactly_as_in_a_full_run
         np.testing.assert_array_equal(some[rows, a:b], expected[rows, a:b])
     assert not np.array_equal(full[0:3, 300:340], linear[0:3, 300:340])   # a real model
     np.testing.assert_array_equal(some[observed], matrix[observed])
+
+
+def test_stand_ins_leave_half_of_the_complete_frames():
+    """Stand-ins that would leave the validation clip fewer than half of the clip's
+    complete frames are dropped (the global candidate's warm start is their subspace)."""
+    from mocapfill.solvers._linalg import linear_fill
+    from mocapfill.solvers.gapwise import blend
+    from mocapfill.solvers.interp import spline
+
+    rng = np.random.default_rng(0)
+    t = np.arange(1200)
+    matrix = np.vstack([np.sin(t / rng.uniform(10, 40) + rng.uniform(0, 6)) for _ in range(24)])
+    seen = np.ones((8, t.size), dtype=bool)
+    for j in (0, 1):                                 # two markers with 40-frame gaps
+        for start in range(50 + 100 * j, t.size - 100, 200):
+            seen[j, start:start + 40] = False
+    observed = np.repeat(seen, 3, axis=0)
+    complete = observed.all(axis=0).sum()
+    groups = row_groups(observed)
+    gapset = GapSet(groups, interior_gaps(observed, groups))
+    placed = pseudo_gaps(observed, gapset, np.random.default_rng(0), fraction=0.1)
+    masks = []
+
+    def recording(matrix, observed):
+        masks.append(observed.copy())
+        return linear_fill(matrix, observed)
+
+    _, report = blend(matrix, observed, {"linear": recording, "spline": spline},
+                      default="linear", seed=0)
+    train = next(mask for mask in masks if not np.array_equal(mask, observed))
+    assert 0 < report.pseudo_gaps < len(placed)     # the floor dropped some
+    assert complete // 2 <= train.all(axis=0).sum() < complete
