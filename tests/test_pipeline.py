@@ -421,3 +421,41 @@ def test_millimetres_per_unit_of_plain_and_divided_units(units, mm):
     from mocapfill.metrics import mm_per_unit
 
     assert mm_per_unit(units) == (pytest.approx(mm) if mm is not None else None)
+
+
+MEETING: dict = {}
+
+
+def meeting_method(matrix, observed, **options):
+    with MEETING["lock"]:
+        MEETING["arrivals"].append(None)
+        first_two = len(MEETING["arrivals"]) <= 2
+    if first_two:
+        MEETING["barrier"].wait()
+    return fake_windowed_method(matrix, observed)
+
+
+def test_small_windows_are_solved_side_by_side_large_ones_one_at_a_time(monkeypatch):
+    import threading
+
+    from mocapfill import pipeline
+    from mocapfill.solvers import METHODS
+
+    # 41 markers in 12,000-frame windows fit the budget several at a time; 300 do not.
+    assert pipeline.windows_at_once(123, 12_000) >= 2
+    assert pipeline.windows_at_once(900, 12_000) == 1
+    # Two windows in progress at once: the first two to start must meet at the barrier
+    # (one window at a time, the first would wait alone and time out).
+    MEETING.update(barrier=threading.Barrier(2, timeout=20), arrivals=[], lock=threading.Lock())
+    monkeypatch.setitem(METHODS, "meeting", "tests.test_pipeline:meeting_method")
+    monkeypatch.setenv("MOCAPFILL_THREADS", "2")
+    clip = smooth_clip(2600, 5)
+    for marker, start in [(0, 300), (1, 1200), (2, 2000)]:
+        clip = with_gap(clip, marker, start, start + 50)
+    matrix, observed = clip.matrix()
+    got = pipeline.complete_matrix(matrix, observed, "meeting", window_frames=1000,
+                                   window_overlap=200)
+    assert len(MEETING["arrivals"]) == 3           # one call per window
+    expected = pipeline.complete_matrix(matrix, observed, "spline", window_frames=1000,
+                                        window_overlap=200)
+    np.testing.assert_array_equal(got, expected)

@@ -66,3 +66,88 @@ def test_default_fill_is_identical_whatever_the_thread_count(monkeypatch):
     four = complete(data, observed)
     assert np.array_equal(one, four)
     assert not np.array_equal(one[~observed], data[~observed])   # the gaps were filled
+
+
+def test_in_order_yields_in_order_and_lends_to_the_jobs_that_need_them():
+    from mocapfill.solvers._threads import in_order
+
+    needs = {1: (0, 3), 2: (0, 3), 4: (3, 5)}
+    seen = {}
+
+    def job(k, lent):
+        seen[k] = dict(lent)
+        time.sleep(0.01 * (k % 3))
+        return f"out{k}", f"lend{k}"
+
+    assert list(in_order(6, needs, job, at_once=3, ahead=4)) == [f"out{k}" for k in range(6)]
+    assert seen[1] == seen[2] == {0: "lend0", 3: "lend3"}
+    assert seen[4] == {3: "lend3", 5: "lend5"}
+    assert seen[0] == seen[3] == seen[5] == {}
+
+
+def test_in_order_runs_jobs_side_by_side_but_not_beyond_its_lookahead():
+    from mocapfill.solvers._threads import in_order
+
+    running, most, lock = set(), [0], threading.Lock()
+    consumed = []
+    barrier = threading.Barrier(2, timeout=10)      # jobs 0 and 1 must overlap
+
+    def job(k, lent):
+        with lock:
+            running.add(k)
+            # Never more than ``ahead`` past the next output not yet taken.
+            assert k < len(consumed) + 2
+            most[0] = max(most[0], len(running))
+        if k < 2:
+            barrier.wait()
+        time.sleep(0.005)
+        with lock:
+            running.discard(k)
+        return k, None
+
+    for out in in_order(8, {}, job, at_once=4, ahead=2):
+        consumed.append(out)
+    assert consumed == list(range(8)) and most[0] == 2
+
+
+def test_run_all_inside_in_order_shares_one_pool_of_threads():
+    from mocapfill.solvers._threads import in_order
+
+    def job(k, lent):
+        # Each window's jobs run on the shared pool's threads, and a run_all nested in one
+        # of those jobs runs in that thread, in order.
+        names = run_all([lambda: threading.current_thread().name] * 3)
+        nested = run_all([lambda: run_all([lambda: threading.current_thread().name] * 2)])
+        return (names, nested[0]), None
+
+    results = list(in_order(3, {}, job, at_once=2, ahead=3, threads=2))
+    for names, nested in results:
+        assert set(names) <= {"mocapfill-0", "mocapfill-1"}
+        assert len(set(nested)) == 1 and nested[0] in {"mocapfill-0", "mocapfill-1"}
+
+
+def test_in_order_raises_the_first_failure_and_stops():
+    from mocapfill.solvers._threads import in_order
+
+    started = []
+
+    def job(k, lent):
+        started.append(k)
+        if k == 2:
+            raise ValueError("window 2 failed")
+        if k > 2:
+            time.sleep(0.05)
+        return k, None
+
+    got = []
+    with pytest.raises(ValueError, match="window 2 failed"):
+        for out in in_order(40, {}, job, at_once=2, ahead=3):
+            got.append(out)
+    assert got == [0, 1] and max(started) < 6
+    # A failing candidate inside a window's run_all reaches the caller the same way.
+
+    def failing(k, lent):
+        return run_all([lambda: 1, lambda: 1 / 0]), None
+
+    with pytest.raises(ZeroDivisionError):
+        list(in_order(3, {}, failing, at_once=2, ahead=3, threads=2))
