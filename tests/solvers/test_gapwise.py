@@ -431,6 +431,34 @@ def test_a_per_gap_fill_asked_for_some_gaps_fills_those_exactly_as_in_a_full_run
     np.testing.assert_array_equal(some[observed], matrix[observed])
 
 
+def test_regression_predicts_from_the_markers_nearest_the_gap_at_most_max_predictors():
+    # 8 markers near the gapped one, 6 far away; with 8 predictors allowed the far
+    # markers' data cannot change the fill, with all 13 it does.
+    from mocapfill.solvers.gapwise import regression_fill
+
+    rng = np.random.default_rng(5)
+    t = np.arange(500) / 60.0
+    turns = np.stack([np.sin(t * f + p) for f, p in zip(rng.uniform(0.5, 2, 3),
+                                                       rng.uniform(0, 6, 3))])
+    near = [rng.normal(size=(3, 3)) @ turns + rng.normal(size=(3, 1)) * 20 for _ in range(9)]
+    far = [rng.normal(size=(3, 3)) @ turns + 1000 + rng.normal(size=(3, 1)) * 20
+           for _ in range(6)]
+    matrix = np.vstack(near + far)
+    observed = _mask(15, 500, [(0, 200, 260)])
+    moved = matrix.copy()
+    moved[27:] += rng.normal(size=(18, 500)).cumsum(axis=1)          # the far markers wander
+    gap = (slice(0, 3), slice(200, 260))
+    assert np.array_equal(regression_fill(matrix, observed, max_predictors=8)[gap],
+                          regression_fill(moved, observed, max_predictors=8)[gap])
+    assert not np.allclose(regression_fill(matrix, observed)[gap],
+                           regression_fill(moved, observed)[gap])
+    # Moving one of the near markers does change it.
+    nudged = matrix.copy()
+    nudged[3:6] += rng.normal(size=(3, 500)).cumsum(axis=1)
+    assert not np.allclose(regression_fill(matrix, observed, max_predictors=8)[gap],
+                           regression_fill(nudged, observed, max_predictors=8)[gap])
+
+
 def test_stand_ins_leave_half_of_the_complete_frames():
     """Stand-ins that would leave the validation clip fewer than half of the clip's
     complete frames are dropped (the global candidate's warm start is their subspace)."""
