@@ -290,8 +290,10 @@ def regression_fill(matrix: np.ndarray, observed: np.ndarray, *, window: int = 4
     """Local ridge regression on the groups that stay visible during each gap.
 
     For a gap [a, b) of group g, the predictors are the other groups observed on [a−1, b],
-    at most ``max_predictors`` of them: those nearest to g at a−1 and b (the sum of the
-    two distances; see :data:`REGRESSION_PREDICTORS`). The training frames are those
+    at most ``max_predictors`` of them where the groups are markers (three rows): those
+    nearest to g at a−1 and b (the sum of the two distances; see
+    :data:`REGRESSION_PREDICTORS`). Rows grouped singly (a channel matrix of angles,
+    where nearness means nothing) keep every predictor. The training frames are those
     within ``window`` frames of the gap where g and all predictors are observed. The
     prediction is corrected by the ramp of its offsets at a−1 and b. Shorter gaps
     (< ``min_gap``) and gaps with fewer than 10 training frames get a linear fill; with
@@ -310,7 +312,7 @@ def regression_fill(matrix: np.ndarray, observed: np.ndarray, *, window: int = 4
         predictors = predictors[predictors != g]
         if predictors.size == 0:
             continue
-        if predictors.size > max_predictors:
+        if predictors.size > max_predictors and groups.shape[1] == 3:
             ends = matrix[:, [a - 1, b]]                             # (rows, 2)
             apart = np.linalg.norm(ends[groups[predictors]] - ends[groups[g]], axis=1)
             nearest = np.argsort(apart.sum(axis=1), kind="stable")[:max_predictors]

@@ -457,6 +457,12 @@ def test_regression_predicts_from_the_markers_nearest_the_gap_at_most_max_predic
     nudged[3:6] += rng.normal(size=(3, 500)).cumsum(axis=1)
     assert not np.allclose(regression_fill(matrix, observed, max_predictors=8)[gap],
                            regression_fill(nudged, observed, max_predictors=8)[gap])
+    # Rows grouped singly (a mask split within a marker: a channel matrix) keep every
+    # predictor.
+    split = observed.copy()
+    split[1, 50:55] = False
+    assert not np.allclose(regression_fill(matrix, split, max_predictors=8)[0, 200:260],
+                           regression_fill(moved, split, max_predictors=8)[0, 200:260])
 
 
 def test_stand_ins_leave_half_of_the_complete_frames():
