@@ -105,38 +105,17 @@ def run_all(jobs: Sequence[Callable[[], T]], threads: int | None = None) -> list
 
 
 def _run_threaded(jobs: Sequence[Callable[[], T]], threads: int) -> list[T]:
-    results: list = [None] * len(jobs)
-    errors: list[BaseException | None] = [None] * len(jobs)
-    queue = iter(range(len(jobs)))
-    lock = threading.Lock()
-
-    def work() -> None:
-        while True:
-            with lock:
-                index = next(queue, None)
-            if index is None:
-                return
-            try:
-                results[index] = jobs[index]()
-            except BaseException as exc:  # re-raised in the calling thread below
-                errors[index] = exc
-            release_memory()            # this job's temporaries, not kept in its arena
-
-    workers = [threading.Thread(target=work, daemon=True, name=f"mocapfill-{k}")
-               for k in range(min(threads, len(jobs)))]
-    for worker in workers:
-        worker.start()
-    for worker in workers:
-        worker.join()
-    for error in errors:
-        if error is not None:
-            raise error
-    return results
+    pool = _Pool(min(threads, len(jobs)))
+    try:
+        return pool.run(jobs)
+    finally:
+        pool.close()
 
 
 class _Pool:
     """Daemon threads that run the jobs handed to them in the order they were handed over
-    (the queue is shared by the callers of :meth:`run`)."""
+    (the queue is shared by the callers of :meth:`run`): those of one :func:`run_all`
+    call, or those of all the jobs of :func:`in_order`."""
 
     def __init__(self, threads: int):
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
@@ -156,7 +135,7 @@ class _Pool:
                 outcome.append(job())
             except BaseException as exc:  # re-raised in the caller of run()
                 outcome.append(_Failed(exc))
-            release_memory()            # as in _run_threaded
+            release_memory()            # this job's temporaries, not kept in its arena
             done.release()
 
     def run(self, jobs: Sequence[Callable[[], T]]) -> list[T]:
