@@ -11,6 +11,8 @@ from mocapfill.solvers.gapwise import (
     GapSet,
     _bagged,
     _cross_validated,
+    _cross_validated_many,
+    _resampled_sums,
     _stack,
     _without_outliers,
     evidence,
@@ -158,6 +160,42 @@ def test_bagged_weights_keep_a_clear_winner_and_hedge_a_close_call():
     assert hard.max() > bagged.max()
     # Deterministic for a given generator.
     assert np.array_equal(bagged, _bagged(close, np.random.default_rng(1)))
+
+
+def test_resamples_side_by_side_are_each_resample_alone():
+    # The bagged resamples are solved together; each must be what its own two-fold fit
+    # gives, from the sums of exactly its stand-ins (repeats counted).
+    rng = np.random.default_rng(4)
+    z = rng.normal(size=(60, 12))
+    # Two close contenders (each better on half of the stand-ins) and a worse third: the
+    # blend generalises on some resamples and not on others.
+    blocks = [evidence(np.stack([z[i], (0.97 if i % 2 else 1.03) * z[i] + 0.1 * z[i + 30],
+                                 1.5 * z[i] + 0.2 * z[i + 1]], axis=1)) for i in range(30)]
+    stack = _stack(blocks)
+    orders = rng.integers(0, 30, (40, 30))
+    together = _cross_validated_many(stack, orders)
+    sums = _resampled_sums(stack[0], orders)
+    def alone(order):     # the two-fold rule, one resample at a time
+        gram = sum(blocks[i][0] for i in order)
+        folds = [sum(blocks[i][0] for i in half) for half in (order[0::2], order[1::2])]
+        blend_err = single_err = 0.0
+        for fit, test in (folds, folds[::-1]):
+            w = simplex_least_squares(fit)
+            blend_err += w @ test @ w
+            single_err += test.diagonal()[np.argmin(fit.diagonal())]
+        return (simplex_least_squares(gram) if blend_err < single_err
+                else np.eye(3)[np.argmin(gram.diagonal())])
+
+    blended = 0
+    for order, w, total in zip(orders, together, sums):
+        np.testing.assert_allclose(total, sum(blocks[i][0] for i in order), rtol=1e-12)
+        np.testing.assert_allclose(w, alone(order), rtol=0, atol=1e-12)
+        blended += int((w > 0).sum() > 1)
+    assert 0 < blended < len(orders)      # both outcomes of the rule are exercised
+    # Fewer than four stand-ins: the best single candidate of the resample.
+    few = _cross_validated_many(stack, orders[:, :3])
+    np.testing.assert_array_equal(few, np.eye(3)[[np.argmin(np.diag(g)) for g in
+                                                  _resampled_sums(stack[0], orders[:, :3])]])
 
 
 def test_join_ends_adds_each_gaps_ramp_for_marker_and_single_row_groups():

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import nnls
 
-from mocapfill.solvers._linalg import simplex_least_squares
+from mocapfill.solvers._linalg import _simplex_support_solutions, simplex_least_squares
 
 
 def _gram(rng: np.random.Generator, k: int, spread: float = 1.0) -> np.ndarray:
@@ -68,3 +68,36 @@ def test_a_perfect_candidate_takes_all_the_weight_and_opposite_errors_cancel():
     np.testing.assert_array_equal(simplex_least_squares(zero), [0.0, 1.0, 0.0])
     opposite = np.hstack([e, -3 * e]).T @ np.hstack([e, -3 * e])
     np.testing.assert_allclose(simplex_least_squares(opposite), [0.75, 0.25], atol=1e-12)
+
+
+def test_a_stack_of_problems_is_solved_as_each_alone():
+    # Problems of every kind side by side: different supports, step counts and scales,
+    # one with a zero best error and one whose best error is subnormal beside the others.
+    rng = np.random.default_rng(15)
+    grams = [_gram(rng, 6, spread=float(rng.uniform(0, 5))) for _ in range(60)]
+    e = rng.standard_normal((50, 1))
+    grams.append(np.hstack([2 * e, 0 * e, e, e, e, e]).T @ np.hstack([2 * e, 0 * e, e, e, e, e]))
+    grams.append(np.diag([1e-310, 1e10, 1.0, 1.0, 1.0, 1.0]))
+    together = simplex_least_squares(np.stack(grams))
+    assert together.shape == (62, 6)
+    for G, w in zip(grams, together):
+        np.testing.assert_allclose(w, simplex_least_squares(G), rtol=0, atol=1e-12)
+    for G, w in zip(grams[:60], together):
+        assert _kkt_violation(G, w) < 1e-8
+
+
+def test_a_singular_support_in_a_stack_is_solved_on_its_own():
+    # Columns 0 and 1 equal: their support's KKT system is singular, which must not stop
+    # the stack's other system from being solved exactly.
+    rng = np.random.default_rng(16)
+    errors = rng.standard_normal((100, 3))
+    errors[:, 1] = errors[:, 0]
+    singular = errors.T @ errors
+    regular = _gram(rng, 3)
+    z = _simplex_support_solutions(np.stack([singular, regular]),
+                                   np.array([[True, True, False], [True, False, True]]))
+    assert np.isfinite(z).all() and np.allclose(z.sum(axis=1), 1.0)
+    assert z[0, 2] == 0.0 and z[1, 1] == 0.0
+    G = regular[np.ix_([0, 2], [0, 2])]
+    expected = np.linalg.solve(G, np.ones(2))
+    np.testing.assert_allclose(z[1, [0, 2]], expected / expected.sum(), rtol=1e-12)
