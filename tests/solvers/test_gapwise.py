@@ -18,6 +18,8 @@ from mocapfill.solvers.gapwise import (
     evidence,
     interior_gaps,
     join_ends,
+    length_class,
+    length_classes,
     pseudo_gaps,
     ramp,
     row_groups,
@@ -74,6 +76,16 @@ def test_stand_ins_respect_the_budget_on_a_crowded_mask():
     for fraction in (0.02, 0.1):
         gapset, chosen = _stand_ins(observed, seed=1, fraction=fraction)
         _check_stand_ins(observed, gapset, chosen, fraction)
+
+
+def test_length_classes_of_an_array_are_each_lengths_class():
+    # Every power of two and its neighbours (where the class changes), up to 2^40 frames.
+    lengths = np.unique([max(p + d, 0) for p in (2 ** np.arange(41)).tolist()
+                         for d in (-1, 0, 1)])
+    classes = length_classes(lengths)
+    assert classes.dtype == np.int64
+    assert classes.tolist() == [length_class(int(x)) for x in lengths]
+    assert length_classes(np.array([1, 2, 3, 4, 5, 8, 9])).tolist() == [0, 1, 2, 2, 3, 3, 4]
 
 
 def test_dense_loss_gets_long_stand_ins_that_absorb_missing_frames():
