@@ -679,12 +679,19 @@ def _gap_weights(gapset: GapSet, weights: dict[int, np.ndarray],
     if prior_w.sum() > 0:
         prior_w = prior_w / prior_w.sum()
     gap_weights = []
-    for index, (_, a, b) in enumerate(gapset.gaps):
-        if len(own.get(index, [])) >= MIN_OWN_STANDINS:
+    # Random loss gives tens of thousands of gaps in a handful of length classes: each
+    # class's weights are looked up once and shared by its gaps (the same array).
+    lengths = np.array([b - a for _, a, b in gapset.gaps], dtype=np.int64)
+    of_class: dict[int, np.ndarray] = {}
+    for index, (length, cls) in enumerate(zip(lengths.tolist(),
+                                              length_classes(lengths).tolist())):
+        if len(own.get(index, ())) >= MIN_OWN_STANDINS:
             w = _bagged(own[index], rng)
         else:
-            w = _weights_for(length_class(b - a), weights, fallback)
-        if b - a >= MIN_MODEL_GAP and prior:
+            w = of_class.get(cls)
+            if w is None:
+                w = of_class[cls] = _weights_for(cls, weights, fallback)
+        if length >= MIN_MODEL_GAP and prior:
             w = (1 - prior_share) * w + prior_share * prior_w
         gap_weights.append(w)
     return gap_weights
@@ -815,11 +822,11 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
                   for i in order}
 
     def gather(trial_errors: list[np.ndarray]) -> None:
+        stacked = np.stack(trial_errors, axis=2)          # (samples, rows, candidates)
         for index, ((_, a, b), source) in enumerate(hidden):
             lo, hi = bounds[index], bounds[index + 1]
             # Samples row by row, as the (rows × frames) block of the stand-in.
-            block = evidence(np.stack([errors_k[lo:hi].T.ravel()
-                                       for errors_k in trial_errors], axis=1))
+            block = evidence(stacked[lo:hi].transpose(1, 0, 2).reshape(-1, len(names)))
             errors.setdefault(length_class(b - a), []).append(block)
             own.setdefault(source, []).append(block)
 
@@ -838,7 +845,9 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         gather([done[("trial", i)] for i in range(len(names))])
     weights = blend_weights(errors, rng)
     gap_weights = _gap_weights(gapset, weights, own, names, default, rng, prior, prior_share)
-    used = np.any([w > 0 for w in gap_weights], axis=0) if gap_weights else \
+    # Over the distinct weight vectors (gaps of one length class share one array).
+    distinct = {id(w): w for w in gap_weights}.values()
+    used = np.any([w > 0 for w in distinct], axis=0) if gap_weights else \
         np.zeros(len(names), dtype=bool)
     later = [i for i in order if fills[i] is None and (names[i] not in optional or used[i])]
     if all(fill is None for fill in fills) and not later:
