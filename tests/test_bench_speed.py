@@ -67,3 +67,20 @@ def test_a_childs_peak_memory_is_its_own_not_the_benchmarks():
     assert ballast[-1] == 1.0
     assert code == 3 and wall > 0
     assert 0 < rss_mb < 100                 # a bare interpreter, not this process's 200 MB
+
+
+def test_the_benchmark_times_the_package_byte_compiled(monkeypatch):
+    # The timed commands must not compile mocapfill's modules on every start (an editable
+    # checkout under PYTHONDONTWRITEBYTECODE would): run_speed writes the bytecode first.
+    import importlib.util
+    from pathlib import Path
+
+    from mocapfill import bench_speed, cli
+
+    compiled = Path(importlib.util.cache_from_source(cli.__file__))
+    compiled.unlink(missing_ok=True)
+    monkeypatch.setattr(bench_speed, "time_command", lambda args, runs: ([0.1] * runs, 1.0))
+    monkeypatch.setattr(bench_speed, "SHARED_DATA", Path("/nonexistent"))
+    bench_speed.run_speed(runs=1, quick=True)
+    assert compiled.exists()
+    assert compiled.stat().st_mtime >= Path(cli.__file__).stat().st_mtime
