@@ -10,6 +10,7 @@ from mocapfill.solvers._linalg import simplex_least_squares
 from mocapfill.solvers.gapwise import (
     GapSet,
     _bagged,
+    _bagged_many,
     _cross_validated,
     _cross_validated_many,
     _resampled_sums,
@@ -208,6 +209,24 @@ def test_resamples_side_by_side_are_each_resample_alone():
     few = _cross_validated_many(stack, orders[:, :3])
     np.testing.assert_array_equal(few, np.eye(3)[[np.argmin(np.diag(g)) for g in
                                                   _resampled_sums(stack[0], orders[:, :3])]])
+
+
+def test_several_gaps_bagged_together_are_each_bagged_alone_in_turn():
+    # Stand-in lists of different sizes (3: the best single candidate, no fit), one a
+    # clear call and others close: solved side by side, each must get exactly the weights
+    # it gets alone, with the generator drawn in the same order.
+    rng = np.random.default_rng(8)
+    def blocks(count, spread):
+        return [evidence(rng.normal(size=(30, 3)) * [1.0, 1.0 + spread, 1.5])
+                for _ in range(count)]
+    lists = [blocks(6, 0.02), blocks(3, 0.0), blocks(11, 0.5), blocks(8, 0.01)]
+    together = _bagged_many(lists, np.random.default_rng(2))
+    alone_rng = np.random.default_rng(2)
+    alone = [_bagged(b, alone_rng) for b in lists]
+    for w, expected in zip(together, alone):
+        np.testing.assert_array_equal(w, expected)
+    assert any(((w > 0) & (w < 1)).any() for w in together)   # some hedged (blended)
+    assert _bagged_many([], np.random.default_rng(2)) == []
 
 
 def test_join_ends_adds_each_gaps_ramp_for_marker_and_single_row_groups():
