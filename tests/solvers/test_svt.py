@@ -63,3 +63,17 @@ def test_divergent_step_on_a_very_sparse_mask_stops_with_a_finite_iterate():
     observed = rng.random((30, 40)) < 0.02
     completed = svt.complete(matrix, observed, max_iter=5000)
     assert np.isfinite(completed).all()
+
+
+def test_a_float32_matrix_is_shrunk_in_float32_as_float64_is():
+    # Down to a singular value 1e−4 of the largest: a Gram matrix formed in float32 holds
+    # σ² only to about 1e−7·σ₁² and would lose it (and the rank with it).
+    rng = np.random.default_rng(6)
+    U, _ = np.linalg.qr(rng.standard_normal((9, 5)))
+    V, _ = np.linalg.qr(rng.standard_normal((400, 5)))
+    X = (U * [300.0, 80.0, 20.0, 4.0, 0.03]) @ V.T
+    for tau in (0.01, 1.0, 250.0):
+        single, rank32 = _linalg.svt(X.astype(np.float32), tau)
+        double, rank64 = _linalg.svt(X, tau)
+        assert single.dtype == np.float32 and rank32 == rank64
+        np.testing.assert_allclose(single, double, rtol=0, atol=1e-5 * np.abs(double).max())
