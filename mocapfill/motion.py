@@ -102,8 +102,16 @@ class Motion:
         Missing entries are NaN.
         """
         idx = np.arange(self.n_markers) if markers is None else np.asarray(markers)
-        sub = self.positions[:, idx, :]                      # (F, k, 3)
-        data = sub.transpose(1, 2, 0).reshape(3 * len(idx), self.n_frames)
+        frames, rows = self.n_frames, 3 * len(idx)
+        every = np.array_equal(idx, np.arange(self.n_markers))
+        flat = (self.positions if every else self.positions[:, idx, :]).reshape(frames, rows)
+        data = np.empty((rows, frames))
+        # Transposed a block of frames at a time: the whole (frames × rows) transpose in one
+        # copy strode through memory and took 0.55–1.2 s on a 216,000-frame clip of 41
+        # markers, by blocks 0.09 s.
+        for start in range(0, frames, _TRANSPOSE_FRAMES):
+            block = slice(start, start + _TRANSPOSE_FRAMES)
+            data[:, block] = flat[block].T
         mask = np.repeat(self.observed[:, idx].T, 3, axis=0)
         return data, mask
 
@@ -125,8 +133,15 @@ class Motion:
         values of a (3·k × frames) matrix; no Motion is built (nor its mask checked)."""
         idx = np.arange(self.n_markers) if markers is None else np.asarray(markers)
         positions = self.positions.copy()
-        positions[:, idx, :] = data.reshape(len(idx), 3, self.n_frames).transpose(2, 0, 1)
+        for start in range(0, self.n_frames, _TRANSPOSE_FRAMES):   # by blocks, as matrix()
+            block = slice(start, start + _TRANSPOSE_FRAMES)
+            positions[block, idx, :] = data[:, block].T.reshape(-1, len(idx), 3)
         return positions
+
+
+# Frames per block of the transposes between (frames, markers, 3) and the (3·markers ×
+# frames) matrix (4096 frames of 41 markers: 4 MB, within a core's caches).
+_TRANSPOSE_FRAMES = 4096
 
 
 def from_matrix(data: np.ndarray, observed: np.ndarray | None = None, *, rate: float = 120.0,

@@ -21,6 +21,31 @@ def test_matrix_layout_is_xyz_rows_per_marker_and_frames_as_columns():
     np.testing.assert_array_equal(matrix[3:6, 4], motion.positions[4, 1])
 
 
+def test_matrix_of_a_long_clip_and_a_marker_subset_is_blockwise_the_same_layout():
+    # The transposes go by blocks of frames: across block boundaries, for all markers and
+    # for a subset, the matrix is x, y, z rows per marker and the way back puts each value
+    # where it came from.
+    from mocapfill.motion import _TRANSPOSE_FRAMES
+
+    frames = 2 * _TRANSPOSE_FRAMES + 3
+    rng = np.random.default_rng(1)
+    motion = Motion(rng.standard_normal((frames, 4, 3)), rng.random((frames, 4)) > 0.2,
+                    ("A", "B", "C", "D"), 100.0)
+    for markers in (None, np.array([3, 1])):
+        chosen = [0, 1, 2, 3] if markers is None else [3, 1]
+        matrix, mask = motion.matrix(markers)
+        assert matrix.shape == (3 * len(chosen), frames) and matrix.flags.c_contiguous
+        for row, marker in enumerate(chosen):
+            for axis in range(3):
+                np.testing.assert_array_equal(matrix[3 * row + axis],
+                                              motion.positions[:, marker, axis])
+                np.testing.assert_array_equal(mask[3 * row + axis], motion.observed[:, marker])
+        moved = motion.positions_from_matrix(matrix + 1.0, markers)
+        np.testing.assert_array_equal(moved[:, chosen], motion.positions[:, chosen] + 1.0)
+        others = [j for j in range(4) if j not in chosen]
+        np.testing.assert_array_equal(moved[:, others], motion.positions[:, others])
+
+
 def test_with_matrix_round_trips():
     motion = smooth_clip(n_frames=7, n_markers=3)
     matrix, mask = motion.matrix()
