@@ -481,23 +481,16 @@ def _cross_validated(stack: Stack, order: np.ndarray | None = None) -> np.ndarra
     grams, sizes = stack
     if order is None:
         order = np.arange(len(sizes))
-    return _cross_validated_many(stack, np.asarray(order)[None])[0]
-
-
-def _cross_validated_many(stack: Stack, orders: np.ndarray) -> np.ndarray:
-    """:func:`_cross_validated` for each row of ``orders`` (resamples × stand-ins), all
-    resamples' convex fits solved side by side (weights: resamples × k)."""
-    return _cross_validated_stacks([stack], [orders])[0]
+    return _cross_validated_stacks([stack], [np.asarray(order)[None]])[0][0]
 
 
 def _cross_validated_stacks(stacks: list[Stack], orders: list[np.ndarray]
                             ) -> list[np.ndarray]:
-    """:func:`_cross_validated_many` of each stack with its resamples, the convex fits of
-    all stacks solved side by side (a clip's gaps weighted on their own stand-ins: 75 of
+    """:func:`_cross_validated` for each stack and each row of its ``orders`` (resamples ×
+    stand-ins): weights (resamples × k) per stack. The convex fits of all resamples of all
+    stacks are solved side by side (a clip's gaps weighted on their own stand-ins: 75 of
     them, 64 resamples each, on the nimble squat; one at a time that was 0.4 s of Python
-    overhead).
-
-    Each resample's sums are those of its own stack, as when it is solved alone.
+    overhead); each resample's sums are those of its own stack, as when it is solved alone.
     """
     grams = [_resampled_sums(stack[0], order) for stack, order in zip(stacks, orders)]
     chosen = [_best_single(gram) for gram in grams]                 # (R, k) each
@@ -555,7 +548,7 @@ def _bagged(blocks: list[Evidence], rng: np.random.Generator,
     with two BLAS threads or one, the bagged weights 1.717 with either. Measured on the
     walking set (one BLAS thread, interior gap samples): mean 2.003 → 1.995 mm; full
     tables in docs/results.md. The resamples are solved side by side
-    (:func:`_cross_validated_many`).
+    (:func:`_cross_validated_stacks`).
     """
     return _bagged_many([blocks], rng, rounds)[0]
 

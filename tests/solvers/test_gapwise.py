@@ -12,7 +12,7 @@ from mocapfill.solvers.gapwise import (
     _bagged,
     _bagged_many,
     _cross_validated,
-    _cross_validated_many,
+    _cross_validated_stacks,
     _resampled_sums,
     _stack,
     _without_outliers,
@@ -186,7 +186,7 @@ def test_resamples_side_by_side_are_each_resample_alone():
                                  1.5 * z[i] + 0.2 * z[i + 1]], axis=1)) for i in range(30)]
     stack = _stack(blocks)
     orders = rng.integers(0, 30, (40, 30))
-    together = _cross_validated_many(stack, orders)
+    together = _cross_validated_stacks([stack], [orders])[0]
     sums = _resampled_sums(stack[0], orders)
     def alone(order):     # the two-fold rule, one resample at a time
         gram = sum(blocks[i][0] for i in order)
@@ -206,7 +206,7 @@ def test_resamples_side_by_side_are_each_resample_alone():
         blended += int((w > 0).sum() > 1)
     assert 0 < blended < len(orders)      # both outcomes of the rule are exercised
     # Fewer than four stand-ins: the best single candidate of the resample.
-    few = _cross_validated_many(stack, orders[:, :3])
+    few = _cross_validated_stacks([stack], [orders[:, :3]])[0]
     np.testing.assert_array_equal(few, np.eye(3)[[np.argmin(np.diag(g)) for g in
                                                   _resampled_sums(stack[0], orders[:, :3])]])
 
