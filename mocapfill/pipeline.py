@@ -396,27 +396,44 @@ def _jump_thresholds(values: np.ndarray, observed: np.ndarray, markers: list[int
     single sample beside a gap: on 85_12 with 20 % of the samples removed (seed 0), 90 of
     28,870 gaps, all correct to within 0.64 mm (median 0.03), for steps of 43–57 mm.
 
-    ``values`` (frames, all markers, 3) and ``observed`` (frames, all markers); a few
-    markers at a time (their rows contiguous: one marker's column of a 216,000-frame clip,
-    read alone, took 27 ms).
+    ``values`` (frames, all markers, 3) and ``observed`` (frames, all markers), read by
+    blocks of consecutive frames (each block's rows contiguous in memory; by columns of a
+    few markers over the whole clip, a 216,000-frame clip of 41 markers took 0.9–1.0 s).
     """
     count = len(markers)
     if options.max_jump_mm is not None:
         limit = options.max_jump_mm / mm_per_unit if options.max_jump_mm > 0 else np.inf
         return np.full(count, limit), np.full(count, limit)
     worst_step, worst_accel = np.zeros(count), np.zeros(count)
-    for lo in range(0, count, _THRESHOLD_CHUNK):
-        chosen = markers[lo:lo + _THRESHOLD_CHUNK]
-        v, seen = values[:, chosen], observed[:, chosen]
-        # Differences over consecutive observed frames only (norms as np.linalg.norm's).
-        step = v[1:] - v[:-1]
-        norms = np.sqrt(np.add.reduce(step * step, axis=2))
-        worst_step[lo:lo + len(chosen)] = np.max(norms, axis=0, initial=0.0,
-                                                 where=seen[1:] & seen[:-1])
-        accel = v[2:] - 2 * v[1:-1] + v[:-2]
-        norms = np.sqrt(np.add.reduce(accel * accel, axis=2))
-        worst_accel[lo:lo + len(chosen)] = np.max(
-            norms, axis=0, initial=0.0, where=seen[2:] & seen[1:-1] & seen[:-2])
+    n = values.shape[0]
+    chosen = np.asarray(markers, dtype=np.int64)
+    every = np.array_equal(chosen, np.arange(values.shape[1]))
+    block = max(16, _THRESHOLD_VALUES // max(1, 3 * count))
+    for lo in range(0, n, block):
+        # Frames lo−2 … hi−1: the steps ending at frames ≥ max(lo, 1) and the second
+        # differences ending at frames ≥ max(lo, 2), each computed once over the clip.
+        first, hi = max(lo - 2, 0), min(lo + block, n)
+        v = values[first:hi] if every else values[first:hi, chosen]
+        seen = observed[first:hi] if every else observed[first:hi, chosen]
+        # Differences over consecutive observed frames only (norms as np.linalg.norm's:
+        # x² + y² + z² summed in that order), in place.
+        a = max(lo, 1) - first
+        step = np.subtract(v[a:], v[a - 1:-1])
+        step *= step
+        norms = np.sqrt(step[..., 0] + step[..., 1] + step[..., 2])
+        np.maximum(worst_step, np.max(norms, axis=0, initial=0.0,
+                                      where=seen[a:] & seen[a - 1:-1]), out=worst_step)
+        c = max(lo, 2) - first
+        if c >= len(v):
+            continue
+        accel = np.multiply(v[c - 1:-1], 2)
+        np.subtract(v[c:], accel, out=accel)
+        accel += v[c - 2:-2]
+        accel *= accel
+        norms = np.sqrt(accel[..., 0] + accel[..., 1] + accel[..., 2])
+        np.maximum(worst_accel, np.max(norms, axis=0, initial=0.0,
+                                       where=seen[c:] & seen[c - 1:-1] & seen[c - 2:-2]),
+                   out=worst_accel)
     floor = JUMP_FLOOR_MM / mm_per_unit
     unseen = ~observed[:, markers].any(axis=0)
     moving = np.where(unseen, np.inf, np.maximum(floor, JUMP_FACTOR * worst_accel))
@@ -425,9 +442,9 @@ def _jump_thresholds(values: np.ndarray, observed: np.ndarray, markers: list[int
     return moving, still
 
 
-# Markers whose jump thresholds are computed together (each temporary: frames × 3 × this
-# many floats).
-_THRESHOLD_CHUNK = 4
+# Values (frames × markers × 3) per block of the jump thresholds' differences: 8 MB per
+# temporary (8,525 frames of 41 markers).
+_THRESHOLD_VALUES = 1 << 20
 
 
 def _boundary_jumps(positions: np.ndarray, observed: np.ndarray, gaps: list[Gap]

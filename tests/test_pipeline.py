@@ -172,6 +172,36 @@ def test_boundary_jumps_of_all_gaps_match_the_one_gap_definition():
                                expected, rtol=1e-14, atol=0)
 
 
+@pytest.mark.parametrize("block_values", [3 * 3 * 1, 3 * 3 * 5, 1 << 20])
+def test_jump_thresholds_by_blocks_of_frames_are_the_whole_clips(monkeypatch, block_values):
+    # The thresholds' steps and second differences are read by blocks of frames: whatever
+    # the block, each marker's largest step and second difference between consecutive
+    # observed frames must be those of the whole clip at once.
+    from mocapfill import pipeline
+
+    rng = np.random.default_rng(9)
+    n = 203
+    positions = rng.normal(size=(n, 5, 3)) * np.array([50.0, 150, 25, 500, 100])[:, None]
+    observed = rng.random((n, 5)) > 0.3
+    positions[~observed] = np.nan
+    markers = [0, 2, 3]
+    v, seen = positions[:, markers], observed[:, markers]
+    step = np.linalg.norm(v[1:] - v[:-1], axis=2)
+    accel = np.linalg.norm(v[2:] - 2 * v[1:-1] + v[:-2], axis=2)
+    worst_step = np.max(step, axis=0, initial=0.0, where=seen[1:] & seen[:-1])
+    worst_accel = np.max(accel, axis=0, initial=0.0, where=seen[2:] & seen[1:-1] & seen[:-2])
+    monkeypatch.setattr(pipeline, "_THRESHOLD_VALUES", block_values)
+    floor = pipeline.JUMP_FLOOR_MM
+    moving, still = pipeline._jump_thresholds(positions, observed, markers, RepairOptions(),
+                                              1.0)
+    np.testing.assert_allclose(moving, np.maximum(floor, pipeline.JUMP_FACTOR * worst_accel),
+                               rtol=1e-15)
+    np.testing.assert_allclose(still, np.maximum(floor, worst_step
+                                                 + pipeline.JUMP_FACTOR * worst_accel),
+                               rtol=1e-15)
+    assert (worst_step > floor).all()                   # the floor does not hide the maxima
+
+
 def test_a_fast_marker_with_one_sample_beside_its_gaps_keeps_its_exact_fills(monkeypatch):
     # Random loss leaves single samples between gaps; a marker moving 60 mm per frame
     # there is 60 mm from a standing-still prediction even when filled exactly. Such
