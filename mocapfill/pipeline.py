@@ -565,7 +565,10 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     # Sacred: observed samples come from the input, bit for bit; samples not filled keep
     # the input's values too.
     np.copyto(positions, motion.positions, where=~accepted[:, :, None])
-    if not np.isfinite(positions[new_observed]).all():
+    # Every observed sample finite, checked without gathering them (a 216,000-frame clip:
+    # 0.86 s for the gather, 0.1 s this way).
+    finite = np.isfinite(positions)
+    if (new_observed & ~(finite[..., 0] & finite[..., 1] & finite[..., 2])).any():
         raise SolverError(f"{named(motion.path)}method {options.method!r} returned non-finite "
                           "values")
     return RepairResult(motion.with_positions(positions, new_observed), outcomes,

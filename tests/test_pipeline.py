@@ -140,6 +140,23 @@ def test_fill_with_a_boundary_jump_is_rejected_and_reported(monkeypatch):
     assert disabled.motion.observed.all()
 
 
+def half_infinite(matrix, observed, **_):
+    """A broken method: a plausible fill but for one coordinate of one sample (row 7 is
+    the y of marker 2, inside its gap 100–160)."""
+    out = np.where(observed, matrix, 0.0)
+    out[7, 130] = np.inf
+    return out
+
+
+def test_a_fill_with_one_non_finite_coordinate_is_a_solver_error(monkeypatch):
+    from mocapfill import solvers
+
+    monkeypatch.setitem(solvers.METHODS, "half_infinite", "tests.test_pipeline:half_infinite")
+    _, gapped = gapped_clip()
+    with pytest.raises(SolverError, match="returned non-finite values"):
+        repair(gapped, RepairOptions(method="half_infinite", max_jump_mm=0))
+
+
 def test_boundary_jumps_of_all_gaps_match_the_one_gap_definition():
     from mocapfill.gaps import Gap
     from mocapfill.pipeline import _boundary_jumps
