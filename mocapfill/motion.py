@@ -14,6 +14,17 @@ from typing import Any
 import numpy as np
 
 
+def finite_samples(positions: np.ndarray) -> np.ndarray:
+    """(frames, markers) True where all three coordinates of a sample are finite.
+
+    The coordinates are combined one by one: ``np.isfinite(positions).all(axis=2)``,
+    reducing over the length-3 axis, took 0.32 s of a 216,000-frame clip of 41 markers
+    (a Motion's whole check and copy 0.75 s, 0.30 s this way).
+    """
+    finite = np.isfinite(positions)
+    return finite[..., 0] & finite[..., 1] & finite[..., 2]
+
+
 @dataclass(frozen=True, eq=False)
 class Motion:
     """Marker trajectories of one clip.
@@ -62,11 +73,8 @@ class Motion:
             raise ValueError(f"observed must be {positions.shape[:2]}, got {observed.shape}")
         if len(self.labels) != positions.shape[1]:
             raise ValueError(f"{len(self.labels)} labels for {positions.shape[1]} markers")
-        # A sample with a non-finite coordinate is missing, whatever the file said. (The
-        # three coordinates combined one by one: ``.all(axis=2)`` over the length-3 axis
-        # took 0.32 s of a 216,000-frame clip of 41 markers, this 0.03 s.)
-        finite = np.isfinite(positions)
-        observed = observed & finite[..., 0] & finite[..., 1] & finite[..., 2]
+        # A sample with a non-finite coordinate is missing, whatever the file said.
+        observed = observed & finite_samples(positions)
         positions = np.where(observed[:, :, None], positions, np.nan)
         fillable = (np.ones(positions.shape[1], bool) if self.fillable is None
                     else np.asarray(self.fillable, dtype=bool))

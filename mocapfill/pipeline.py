@@ -18,7 +18,7 @@ import numpy as np
 from ._blas import single_threaded
 from .errors import NothingToRepair, ParameterError, SolverError, named
 from .gaps import Gap, find_gaps, missing_runs
-from .motion import Motion, label_matches
+from .motion import Motion, finite_samples, label_matches
 from .scaling import UnitScale
 from .solvers import get_method, option_names
 from .solvers._threads import in_order, release_memory, thread_count
@@ -567,8 +567,7 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     np.copyto(positions, motion.positions, where=~accepted[:, :, None])
     # Every observed sample finite, checked without gathering them (a 216,000-frame clip:
     # 0.86 s for the gather, 0.1 s this way).
-    finite = np.isfinite(positions)
-    if (new_observed & ~(finite[..., 0] & finite[..., 1] & finite[..., 2])).any():
+    if (new_observed & ~finite_samples(positions)).any():
         raise SolverError(f"{named(motion.path)}method {options.method!r} returned non-finite "
                           "values")
     return RepairResult(motion.with_positions(positions, new_observed), outcomes,

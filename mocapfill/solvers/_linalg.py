@@ -38,6 +38,15 @@ def as_problem(matrix: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np
     return matrix, observed
 
 
+def iteration_dtype(dtype) -> np.dtype:
+    """``dtype`` as a numpy dtype, which must be float32 or float64 (the floating types
+    the solvers' iterations run in)."""
+    dtype = np.dtype(dtype)
+    if dtype not in (np.float32, np.float64):
+        raise ValueError(f"dtype must be float32 or float64, got {dtype}")
+    return dtype
+
+
 def soft_threshold(x: np.ndarray, tau: float | np.ndarray) -> np.ndarray:
     """``sign(x)·max(|x| - tau, 0)`` entrywise (a new array)."""
     x = np.asarray(x, dtype=np.float64)

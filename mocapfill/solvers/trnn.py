@@ -30,7 +30,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._linalg import linear_fill, padded_to_fast_length, temporal_solve, times_spd_inverse
+from ._linalg import (
+    iteration_dtype,
+    linear_fill,
+    padded_to_fast_length,
+    temporal_solve,
+    times_spd_inverse,
+)
 
 if TYPE_CHECKING:
     from .gapwise import Validation
@@ -145,9 +151,7 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
         raise ValueError(f"d must be in {rank}..{min(m, n)}, got {d}")
     lam = 1.0 / np.sqrt(max(m, n)) if lam is None else float(lam)
 
-    dtype = np.dtype(dtype)
-    if dtype not in (np.float32, np.float64):
-        raise ValueError(f"dtype must be float32 or float64, got {dtype}")
+    dtype = iteration_dtype(dtype)
     PD = np.where(observed, D, 0.0)
     norm_PD = np.linalg.norm(PD) or 1.0
     X = linear_fill(D, observed) if X0 is None else np.array(X0, dtype=np.float64)

@@ -35,6 +35,7 @@ import numpy as np
 
 from ._linalg import (
     as_problem,
+    iteration_dtype,
     linear_fill,
     padded_to_fast_length,
     svt,
@@ -73,9 +74,7 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, lam: float | None = No
     matrix, observed = as_problem(matrix, observed)
     if mu < 0 or rho < 1 or eta0 <= 0:
         raise ValueError("need mu >= 0, rho >= 1, eta0 > 0")
-    dtype = np.dtype(dtype)
-    if dtype not in (np.float32, np.float64):
-        raise ValueError(f"dtype must be float32 or float64, got {dtype}")
+    dtype = iteration_dtype(dtype)
     m, n = matrix.shape
     lam = 100.0 / np.sqrt(max(m, n)) if lam is None else float(lam)
     PD = np.where(observed, matrix, 0.0)
