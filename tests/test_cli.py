@@ -109,6 +109,10 @@ def test_check_exits_1_when_gaps_are_left(clip_files):
     (["repair", "gapped.npz", "o.npz", "--max-gap", "soon"], 2, "--max-gap"),
     (["simulate", "truth.npz", "s.npz", "--mr", "1.5"], 2, "mr must be in [0, 1)"),
     (["info", "skeleton.asf"], 2, "pass the .amc"),
+    # A known suffix that is not written: advice about outputs, not about inputs.
+    (["repair", "gapped.npz", "o.mat"], 2,
+     "o.mat: .mat files are not written; name the output .c3d, .trc, .csv, .txt, .npz"),
+    (["convert", "gapped.npz", "o.asf"], 2, "o.asf: .asf files are not written"),
     (["info", "broken.npz"], 123, "broken.npz"),
     # Found by an audit of the command line: these raised tracebacks (exit 1), printed
     # click's usage block, or wrote the output before failing.

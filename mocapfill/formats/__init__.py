@@ -62,12 +62,18 @@ def same_skeleton_format(in_path: str | os.PathLike, out_path: str | os.PathLike
     return suffix in SKELETON_FORMATS and Path(out_path).suffix.lower() == suffix
 
 
-def format_module(path: str | os.PathLike) -> ModuleType:
-    """The module that reads and writes files with this suffix."""
+def format_module(path: str | os.PathLike, *, output: bool = False) -> ModuleType:
+    """The module that reads and writes files with this suffix (``output``: ``path`` is
+    to be written, which a known suffix we do not handle gets its own message for:
+    "pass the .amc" or "export C3D from QTM" is advice about inputs)."""
     suffix = Path(path).suffix.lower()
     if suffix in FORMATS:
         return importlib.import_module(FORMATS[suffix])
     if suffix in WRONG_SUFFIXES:
+        if output:
+            raise FormatError(path, f"{suffix} files are not written; name the output "
+                              f"{', '.join(POSITION_FORMATS)} (or .bvh / .amc from an "
+                              "input of that format)", exit_code=2)
         raise FormatError(path, WRONG_SUFFIXES[suffix], exit_code=2)
     known = ", ".join(sorted(FORMATS))
     raise FormatError(path, f"unknown file type {suffix or '(no suffix)'!r}; known: {known}",
@@ -106,7 +112,7 @@ def check_output(path: str | os.PathLike, input_path: str | os.PathLike) -> None
     skeleton format only from the same format), so that a long repair is not thrown away
     for a mistyped OUT. Raises FormatError naming ``path``."""
     path, input_path = Path(path), Path(input_path)
-    format_module(path)
+    format_module(path, output=True)
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
         raise FormatError(path, f"output folder {directory} does not exist", exit_code=2)
@@ -153,7 +159,7 @@ def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = 
         refuses the clip.
     """
     path = Path(path)
-    module = format_module(path)
+    module = format_module(path, output=True)
     if motion.path is not None and path.exists() and path.resolve() == motion.path.resolve():
         raise FormatError(path, "refusing to overwrite the input file", exit_code=2)
     if motion.n_frames == 0:
