@@ -62,8 +62,11 @@ def single_threaded() -> Iterator[None]:
         yield
         return
     if _depth == 0:
-        import scipy.linalg  # noqa: F401  (its own OpenBLAS, to be limited as well)
         from threadpoolctl import threadpool_limits
+
+        from .solvers._compiled import BLAS, module
+
+        module(BLAS)                # scipy's own OpenBLAS, to be limited as well
 
         _limiter = threadpool_limits(limits=1, user_api="blas")
     _depth += 1

@@ -137,8 +137,7 @@ def temporal_solve(b: np.ndarray, eta: float, mu: float) -> np.ndarray:
     by a banded Cholesky factorisation of the pentadiagonal ``eta·I + mu·TᵀT`` (17 ms
     there); both agree to 1e−12.
     """
-    # Imported here: the methods without the temporal term do not pay for scipy.fft.
-    from scipy.fft import dct, idct
+    from ._compiled import dct, idct
 
     b = _floating(b)
     n = b.shape[-1]
@@ -146,16 +145,16 @@ def temporal_solve(b: np.ndarray, eta: float, mu: float) -> np.ndarray:
         return _banded_temporal_solve(b, eta, mu).astype(b.dtype, copy=False)
     gamma = (1.0 / (eta + mu * _cached_eigenvalues(n))).astype(b.dtype)
     # One new array: the DCT's output is scaled and transformed back in place.
-    coefficients = dct(b, type=2, norm="ortho", axis=-1)
+    coefficients = dct(b)
     coefficients *= gamma
-    return idct(coefficients, type=2, norm="ortho", axis=-1, overwrite_x=True)
+    return idct(coefficients, overwrite=True)
 
 
 def fast_length(n: int) -> int:
     """The smallest length ≥ n the DCT handles fast (only 2, 3, 5 as prime factors)."""
-    from scipy.fft import next_fast_len
+    from ._compiled import good_size
 
-    return next_fast_len(n, real=True)
+    return good_size(n)
 
 
 def padded_to_fast_length(matrix: np.ndarray, observed: np.ndarray
@@ -212,11 +211,11 @@ def _second_difference_gram_bands(n: int) -> np.ndarray:
 
 
 def _banded_temporal_solve(b: np.ndarray, eta: float, mu: float) -> np.ndarray:
-    from scipy.linalg import solveh_banded
+    from ._compiled import solveh_banded
 
     bands = mu * _second_difference_gram_bands(b.shape[-1])
     bands[2] += eta
-    return solveh_banded(bands, b.T, check_finite=False).T
+    return solveh_banded(bands, b.T).T
 
 
 def linear_fill(matrix: np.ndarray, observed: np.ndarray) -> np.ndarray:
@@ -257,9 +256,9 @@ def spd_inverse(A: np.ndarray) -> np.ndarray:
     about 0.5 against 1–1.8 ms, which was a quarter of an 810-frame iteration). Falls
     back to LU if rounding made A numerically indefinite.
     """
-    from scipy.linalg import get_lapack_funcs
+    from ._compiled import lapack
 
-    potrf, potri = get_lapack_funcs(("potrf", "potri"), (A,))
+    potrf, potri = lapack("potrf", A), lapack("potri", A)
     factor, info = potrf(A, lower=False, clean=False, overwrite_a=False)
     if info == 0:
         inverse, info = potri(factor, lower=False, overwrite_c=True)
@@ -278,13 +277,12 @@ def times_spd_inverse(B: np.ndarray, A: np.ndarray) -> np.ndarray:
     closer to the float64 product (2e−7 against 5e−7 relative). Falls back to LU where A
     is numerically indefinite.
     """
-    from scipy.linalg import get_lapack_funcs
-    from scipy.linalg.blas import get_blas_funcs
+    from ._compiled import blas, lapack
 
-    potrf, = get_lapack_funcs(("potrf",), (A,))
+    potrf = lapack("potrf", A)
     factor, info = potrf(A, lower=False, clean=False, overwrite_a=False)
     if info == 0:
-        trsm = get_blas_funcs("trsm", (factor, B))
+        trsm = blas("trsm", factor, B)
         half = trsm(1.0, factor, B, side=1, lower=0, trans_a=0)          # B U⁻¹
         return trsm(1.0, factor, half, side=1, lower=0, trans_a=1, overwrite_b=True)
     return B @ np.linalg.inv(A)

@@ -65,7 +65,7 @@ def cubic_spline(x: np.ndarray, y: np.ndarray, bc_type: str = "not-a-knot") -> I
     cubic is reproduced exactly), "natural" (zero second derivative at both ends) or
     "clamped" (zero first derivative at both ends).
     """
-    from scipy.linalg import solve_banded
+    from ._compiled import solve_banded
 
     if bc_type not in END_CONDITIONS:
         raise ValueError(f"bc_type must be one of {END_CONDITIONS}, got {bc_type!r}")
@@ -96,7 +96,7 @@ def cubic_spline(x: np.ndarray, y: np.ndarray, bc_type: str = "not-a-knot") -> I
     else:
         ab[1, 0], ab[0, 1], rhs[0] = 1.0, 0.0, 0.0
         ab[1, -1], ab[2, -2], rhs[-1] = 1.0, 0.0, 0.0
-    slopes = solve_banded((1, 1), ab, rhs, check_finite=False)
+    slopes = solve_banded(1, 1, ab, rhs)
     return _hermite(x, y, slopes, shape)
 
 
@@ -165,7 +165,7 @@ def odd_spline(x: np.ndarray, y: np.ndarray, k: int) -> Interpolant:
     end knots are stacked), so the collocation matrix is square and banded; needs more
     than k samples. k = 3 is :func:`cubic_spline` with not-a-knot ends.
     """
-    from scipy.linalg import get_lapack_funcs
+    from ._compiled import lapack
 
     if k < 1 or k % 2 == 0:
         raise ValueError(f"the degree must be odd and positive, got {k}")
@@ -185,7 +185,7 @@ def odd_spline(x: np.ndarray, y: np.ndarray, k: int) -> Interpolant:
     # Written through flat indices (a third of the time of the 2-D fancy index).
     ab = np.zeros((2 * lower + upper + 1, n))
     ab.reshape(-1)[(lower + upper + rows - cols) * n + cols] = _bsplines(knots, x, left, k)
-    gbsv, = get_lapack_funcs(("gbsv",), (ab,))
+    gbsv = lapack("gbsv", ab)
     _, _, coefficients, info = gbsv(lower, upper, ab, y, overwrite_ab=True)
     if info != 0:
         raise ValueError(f"the collocation system of the degree-{k} spline is singular")

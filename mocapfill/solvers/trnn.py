@@ -187,9 +187,9 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
     Y1 = np.zeros_like(X)
     eta = float(eta0)
     # y ← a·x + y in one pass (BLAS axpy on the flat views of contiguous arrays).
-    from scipy.linalg.blas import get_blas_funcs
+    from ._compiled import blas
 
-    axpy = get_blas_funcs("axpy", (X,))
+    axpy = blas("axpy", X)
     T, C_spare = np.empty_like(X), np.empty_like(X)
     stacked = np.empty((m + rank, d), dtype=dtype)
     RtR = R.T @ R
