@@ -1,10 +1,11 @@
-"""Interpolating splines along time, on numpy and ``scipy.linalg`` alone.
+"""Interpolating splines along time, on numpy and LAPACK's banded solvers alone.
 
 The spline candidates of the blend (degrees 3, 5 and 7) and the ``spline`` and ``pchip``
 methods were built on ``scipy.interpolate``, whose import (with ``scipy.optimize``, which
 it pulls in) cost about 0.17 s of every ``mocapfill repair``: 0.51 s for the scipy modules
 the repair imported, against 0.34 s for ``scipy.linalg`` and ``scipy.fft``, which the
-solvers need anyway. The interpolants here are the same ones, and the tests check them
+solvers needed then (now only their compiled modules, :mod:`mocapfill.solvers._compiled`).
+The interpolants here are the same ones, and the tests check them
 against scipy's:
 
 - :func:`cubic_spline` — the C² cubic spline through the samples with not-a-knot, natural

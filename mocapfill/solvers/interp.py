@@ -12,7 +12,7 @@ samples as a function of the frame index:
   1980; the interpolant of ``scipy.interpolate.PchipInterpolator``): no overshoot,
   monotone between samples.
 
-The interpolants come from :mod:`mocapfill.solvers._splines` (numpy and ``scipy.linalg``;
+The interpolants come from :mod:`mocapfill.solvers._splines` (numpy and LAPACK;
 importing ``scipy.interpolate`` cost a sixth of a second of every command). Rows with
 the same mask (a marker's x, y, z) are interpolated together.
 
