@@ -12,8 +12,9 @@ took 0.39 s on top of numpy's 0.09 s, in every command, for a 2 s repair of an
 
 So the extension modules (``scipy.linalg._fblas``, ``scipy.linalg._flapack``,
 ``scipy.fft._pocketfft.pypocketfft``) are loaded from scipy's installed folder by their
-file names, without executing the packages above them, and registered under their own
-names in ``sys.modules`` (a later ``import scipy.linalg`` uses the same modules). The
+file names, without executing the packages above them. They are kept here, not entered
+in ``sys.modules``: a later ``import scipy.linalg`` loads its module as usual, and Python
+gives it the same routines (an extension module is initialised once per process). The
 routines are the very objects ``scipy.linalg.get_blas_funcs`` and ``scipy.fft.dct``
 reach, called with the arguments those functions pass, so results are the same bit for
 bit (``tests/test_compiled.py``). Where a module cannot be loaded that way (another
@@ -52,24 +53,29 @@ def _load_directly(name: str) -> ModuleType | None:
                                                                      loader=loader)
                 module = importlib.util.module_from_spec(module_spec)
                 loader.exec_module(module)
+                # Python enters a module like these in sys.modules when it first loads
+                # it; taken out again, so that scipy's own import later runs as usual
+                # (and sets the attribute on its package). It gets the same routines.
+                sys.modules.pop(name, None)
                 return module
     except Exception:       # any failure: the usual import below decides
         return None
     return None
 
 
+_loaded: dict[str, ModuleType] = {}
+
+
 def module(name: str, *, directly: bool = True) -> ModuleType:
-    """One of the extension modules above: from ``sys.modules`` if already there (loaded
-    by an earlier call, or by scipy), else loaded from its file (``directly``), else
-    imported the usual way.
+    """One of the extension modules above: scipy's own if scipy already imported it,
+    else loaded from its file (``directly``), else imported the usual way.
     """
-    loaded = sys.modules.get(name)
-    if loaded is not None:
-        return loaded
-    found = _load_directly(name) if directly else None
+    found = sys.modules.get(name) or _loaded.get(name)
     if found is None:
-        return importlib.import_module(name)
-    sys.modules[name] = found
+        found = _load_directly(name) if directly else None
+        if found is None:
+            found = importlib.import_module(name)
+        _loaded[name] = found
     return found
 
 
