@@ -32,7 +32,6 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 if TYPE_CHECKING:
     from .motion import Motion
@@ -112,15 +111,16 @@ class Skeleton:
         return mask
 
 
-def euler_matrices(axes: str, angles_deg: np.ndarray, intrinsic: bool) -> np.ndarray:
+def euler_matrices(axes: str, angles: np.ndarray, intrinsic: bool, *,
+                   degrees: bool = True) -> np.ndarray:
     """Rotation matrices of per-frame Euler angles.
 
     Parameters
     ----------
     axes
         Axis letters in the order the angles are given ("ZXY", "xz", ...); any case.
-    angles_deg
-        (frames, len(axes)) angles in degrees.
+    angles
+        (frames, len(axes)) angles, in degrees (radians with ``degrees=False``).
     intrinsic
         True: rotate about the moving axes (R = R_first · R_second · ...); False: about
         the fixed axes (R = ... · R_second · R_first).
@@ -130,12 +130,36 @@ def euler_matrices(axes: str, angles_deg: np.ndarray, intrinsic: bool) -> np.nda
     numpy.ndarray
         (frames, 3, 3) matrices acting on column vectors.
     """
-    angles = np.asarray(angles_deg, dtype=np.float64)
+    angles = np.asarray(angles, dtype=np.float64)
     if not axes:
         return np.broadcast_to(np.eye(3), (angles.shape[0], 3, 3)).copy()
-    sequence = axes.upper() if intrinsic else axes.lower()
-    return Rotation.from_euler(sequence, angles.reshape(-1, len(axes)),
-                               degrees=True).as_matrix()
+    if len(axes) > 3 or any(axis not in "xyzXYZ" for axis in axes):
+        raise ValueError(f"Euler axes must be up to three of x, y, z, got {axes!r}")
+    # Written out rather than through scipy.spatial.transform.Rotation, whose import (all
+    # of scipy.spatial) took 0.35–0.41 s of every command reading a BVH or ASF/AMC file.
+    radians = angles.reshape(-1, len(axes))
+    if degrees:
+        radians = np.radians(radians)
+    matrices = _axis_rotations(axes[0], radians[:, 0])
+    for k in range(1, len(axes)):
+        turn = _axis_rotations(axes[k], radians[:, k])
+        matrices = matrices @ turn if intrinsic else turn @ matrices
+    return matrices
+
+
+def _axis_rotations(axis: str, radians: np.ndarray) -> np.ndarray:
+    """(frames, 3, 3) rotations by ``radians`` about the x, y or z axis (acting on column
+    vectors, counter-clockwise seen from the axis's tip)."""
+    i = "xyz".index(axis.lower())
+    j, k = (i + 1) % 3, (i + 2) % 3
+    cos, sin = np.cos(radians), np.sin(radians)
+    out = np.zeros(radians.shape + (3, 3))
+    out[:, i, i] = 1.0
+    out[:, j, j] = cos
+    out[:, j, k] = -sin
+    out[:, k, j] = sin
+    out[:, k, k] = cos
+    return out
 
 
 def forward_kinematics(skeleton: Skeleton, values: np.ndarray) -> np.ndarray:

@@ -57,11 +57,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..errors import FormatError, ParameterError
 from ..motion import Motion
-from ..skeleton import ChannelState, Skeleton, motion_with_channels, patch_tokens, positions_edited
+from ..skeleton import (
+    ChannelState,
+    Skeleton,
+    euler_matrices,
+    motion_with_channels,
+    patch_tokens,
+    positions_edited,
+)
 from . import skeleton_input_needed
 from ._text import LATIN1_BOM, latin1_label
 
@@ -231,7 +237,8 @@ def _tree(asf: _Asf) -> list[tuple[str, int]]:
 
 
 def _axis_frame(order: str, angles: tuple[float, ...], in_degrees: bool) -> np.ndarray:
-    return Rotation.from_euler(order.lower(), angles, degrees=in_degrees).as_matrix()
+    return euler_matrices(order, np.asarray(angles, dtype=np.float64)[None, :], intrinsic=False,
+                          degrees=in_degrees)[0]
 
 
 def build_skeleton(asf: _Asf) -> tuple[Skeleton, list[str], list[tuple[int, ...]]]:
