@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -374,6 +374,28 @@ def format_float(value: float) -> str:
     """Shortest text that reads back as exactly ``value`` (``1.0`` written ``1``)."""
     text = repr(float(value))
     return text.removesuffix(".0")
+
+
+def frame_rows(motion: Motion, first_cells: Callable[[int], list[str]],
+               decimals: int | None) -> Iterator[list[str]]:
+    """Each frame's cells for a new text file: ``first_cells(frame)``, then x, y, z of every
+    marker (:func:`format_float`, or ``decimals`` fixed decimals), empty where the sample
+    is missing.
+
+    The numbers are formatted all at once from one list of the clip's floats rather than
+    one function call each (an 85_12-sized clip, 550,000 numbers: a TRC or CSV took about
+    1 s to write before); the text is the same.
+    """
+    n_frames, n_markers = motion.observed.shape
+    missing = ~motion.observed
+    for f, values in enumerate(motion.positions.reshape(n_frames, 3 * n_markers).tolist()):
+        if decimals is None:
+            cells = [text[:-2] if text.endswith(".0") else text for text in map(repr, values)]
+        else:
+            cells = [f"{value:.{decimals}f}" for value in values]
+        for m in np.flatnonzero(missing[f]).tolist():
+            cells[3 * m:3 * m + 3] = ("", "", "")
+        yield first_cells(f) + cells
 
 
 def format_time(seconds: float) -> str:

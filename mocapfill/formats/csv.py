@@ -79,6 +79,7 @@ from ._text import (
     format_float,
     format_time,
     frame_rate,
+    frame_rows,
     is_blank,
     parse_column,
     parse_markers,
@@ -190,9 +191,6 @@ def write(motion: Motion, path: Path, *, decimals: int | None = None,
 
 def new_file_lines(motion: Motion, decimals: int | None = None) -> list[str]:
     """The lines of a new plain CSV holding ``motion`` (see the module docstring)."""
-    def number(value: float) -> str:
-        return format_float(value) if decimals is None else f"{value:.{decimals}f}"
-
     # Unique (a repeated name would make its columns unreadable), like the TRC and C3D
     # writers' names.
     names = unique_labels([_clean_label(label, j) for j, label in enumerate(motion.labels)])
@@ -201,14 +199,8 @@ def new_file_lines(motion: Motion, decimals: int | None = None) -> list[str]:
     rate = writable_rate(motion.rate, DEFAULT_RATE)
     lines = [f"# units: {motion.units}, rate: {format_float(rate)}\n",
              ",".join(header) + "\n"]
-    for f in range(motion.n_frames):
-        cells = [str(motion.first_frame + f), format_time(f / rate)]
-        for m in range(motion.n_markers):
-            if motion.observed[f, m]:
-                cells.extend(number(v) for v in motion.positions[f, m])
-            else:
-                cells.extend(("", "", ""))
-        lines.append(",".join(cells) + "\n")
+    lines.extend(",".join(cells) + "\n" for cells in frame_rows(
+        motion, lambda f: [str(motion.first_frame + f), format_time(f / rate)], decimals))
     return lines
 
 

@@ -83,6 +83,7 @@ from ._text import (
     format_float,
     format_time,
     frame_rate,
+    frame_rows,
     parse_column,
     parse_markers,
     patched_lines,
@@ -231,9 +232,6 @@ def write(motion: Motion, path: Path, *, decimals: int | None = None,
 
 def new_file_lines(motion: Motion, name: str, decimals: int | None = None) -> list[str]:
     """The lines of a new TRC file in OpenSim's layout (see the module docstring)."""
-    def number(value: float) -> str:
-        return format_float(value) if decimals is None else f"{value:.{decimals}f}"
-
     rate = writable_rate(motion.rate, DEFAULT_RATE)
     n_frames, n_markers = motion.n_frames, motion.n_markers
     values = (format_float(rate), format_float(rate), str(n_frames), str(n_markers),
@@ -245,14 +243,9 @@ def new_file_lines(motion: Motion, name: str, decimals: int | None = None) -> li
                                         for name in opensim_names(motion.labels)) + "\n",
              "\t\t" + "".join(f"X{k}\tY{k}\tZ{k}\t" for k in range(1, n_markers + 1)) + "\n",
              "\n"]
-    for f in range(n_frames):
-        cells = [str(motion.first_frame + f), format_time(f / rate)]
-        for m in range(n_markers):
-            if motion.observed[f, m]:
-                cells.extend(number(v) for v in motion.positions[f, m])
-            else:
-                cells.extend(("", "", ""))
-        lines.append("".join(cell + "\t" for cell in cells) + "\n")
+    # Every cell, the last included, is followed by a tab.
+    lines.extend("\t".join(cells) + "\t\n" for cells in frame_rows(
+        motion, lambda f: [str(motion.first_frame + f), format_time(f / rate)], decimals))
     return lines
 
 
