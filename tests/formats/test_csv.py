@@ -391,6 +391,17 @@ def test_new_file_round_trip_reproduces_any_floats(values):
     np.testing.assert_array_equal(back.positions, motion.positions)
 
 
+def test_new_file_cells_hold_each_number_as_written_and_nothing_for_missing_samples():
+    data = np.array([[[1.0, -0.5, 1e-7], [2.25, 3.0, 4.0]],
+                     [[5.0, 6.0, 7.0], [0.1, 0.2, 0.3]]])
+    observed = np.array([[True, False], [True, True]])
+    motion = Motion(data, observed, ("A", "B"), 100.0)
+    shortest = csvfmt.new_file_lines(motion)[2:]
+    assert shortest == ["1,0,1,-0.5,1e-07,,,\n", "2,0.01,5,6,7,0.1,0.2,0.3\n"]
+    fixed = csvfmt.new_file_lines(motion, decimals=2)[2:]
+    assert fixed == ["1,0,1.00,-0.50,0.00,,,\n", "2,0.01,5.00,6.00,7.00,0.10,0.20,0.30\n"]
+
+
 def test_motion_that_no_longer_fits_its_source_is_written_as_a_new_file(tmp_path):
     original = csvfmt.read(write_text(tmp_path, PLAIN))
     cut = original.replace(positions=original.positions[:2], observed=original.observed[:2])
