@@ -28,6 +28,7 @@ import importlib.machinery
 import importlib.util
 import os
 import sys
+import threading
 from types import ModuleType
 
 import numpy as np
@@ -64,18 +65,33 @@ def _load_directly(name: str) -> ModuleType | None:
 
 
 _loaded: dict[str, ModuleType] = {}
+# One thread loads a module at a time: the blend's first two solves start side by side
+# and reach the DCT together, and two threads initialising one extension module at once
+# left one of them with a module missing its functions ("module ... pypocketfft has no
+# attribute 'good_size'", seen once in a benchmark run).
+_loading = threading.Lock()
+# A function each module must have; a module without it is not used.
+_EXPECTED = {BLAS: "daxpy", LAPACK: "dpotrf", POCKETFFT: "good_size"}
 
 
 def module(name: str, *, directly: bool = True) -> ModuleType:
     """One of the extension modules above: scipy's own if scipy already imported it,
-    else loaded from its file (``directly``), else imported the usual way.
+    else loaded from its file (``directly``), else imported the usual way. Safe to call
+    from several threads at once.
     """
-    found = sys.modules.get(name) or _loaded.get(name)
-    if found is None:
-        found = _load_directly(name) if directly else None
+    found = _loaded.get(name)
+    if found is not None:
+        return found
+    with _loading:
+        found = _loaded.get(name)
         if found is None:
-            found = importlib.import_module(name)
-        _loaded[name] = found
+            if name in sys.modules:     # through the import system, which waits for
+                found = importlib.import_module(name)     # an import in progress
+            elif directly:
+                found = _load_directly(name)
+            if found is None or not hasattr(found, _EXPECTED.get(name, "__name__")):
+                found = importlib.import_module(name)
+            _loaded[name] = found
     return found
 
 

@@ -67,6 +67,53 @@ def test_complex_arrays_are_refused():
         _compiled.blas("axpy", np.ones(2, dtype=complex))
 
 
+def test_threads_asking_for_a_module_at_once_get_it_loaded_once(monkeypatch):
+    # The blend's first solves start side by side and reach the DCT together; two
+    # threads initialising one extension at once once left a module without functions.
+    import threading
+    import time
+    from types import SimpleNamespace
+
+    name = "scipy.linalg._not_really_loaded"
+    made = SimpleNamespace(__name__=name)
+    calls = []
+
+    def slow_load(wanted):
+        calls.append(wanted)
+        time.sleep(0.05)
+        return made
+
+    monkeypatch.setattr(_compiled, "_load_directly", slow_load)
+    monkeypatch.delitem(_compiled._loaded, name, raising=False)
+    start = threading.Barrier(8)
+    got = []
+
+    def ask():
+        start.wait()
+        got.append(_compiled.module(name))
+
+    threads = [threading.Thread(target=ask) for _ in range(8)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    _compiled._loaded.pop(name, None)
+    assert calls == [name]
+    assert len(got) == 8 and all(module is made for module in got)
+
+
+def test_a_loaded_module_without_its_functions_is_not_used(monkeypatch):
+    from types import SimpleNamespace
+
+    monkeypatch.setattr(_compiled, "_load_directly", lambda name: SimpleNamespace())
+    monkeypatch.delitem(_compiled._loaded, _compiled.POCKETFFT, raising=False)
+    monkeypatch.delitem(sys.modules, _compiled.POCKETFFT, raising=False)
+    try:
+        assert hasattr(_compiled.module(_compiled.POCKETFFT), "good_size")
+    finally:
+        _compiled._loaded.pop(_compiled.POCKETFFT, None)
+
+
 def _banded(rng: np.random.Generator, lower: int, upper: int, n: int) -> np.ndarray:
     ab = rng.standard_normal((lower + upper + 1, n))
     ab[upper] += 10.0           # diagonally dominant: well conditioned
