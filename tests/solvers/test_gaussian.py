@@ -89,11 +89,45 @@ def test_em_on_the_incomplete_frames_alone_is_em_on_every_frame():
     start = X + rng.standard_normal((m, n))
     for iterations in (1, 4):
         fit = gaussian.fit_normal(np.where(observed, X, 0.0), observed, start=start,
-                                  ridge=1e-3, max_iter=iterations, tol=0.0)
+                                  ridge=1e-3, max_iter=iterations, tol=0.0, accelerate=False)
         assert fit.iterations == iterations
         expected = _textbook_em(X, observed, start, 1e-3, iterations)
         np.testing.assert_allclose(fit.filled, expected, atol=1e-9)
         np.testing.assert_allclose(fit.filled[observed], X[observed], rtol=0, atol=0)
+
+
+def test_squarem_reaches_the_em_fixed_point_in_fewer_e_steps():
+    # A marker that follows another, missing for most of the clip: much of its
+    # information is missing, the slow case of plain EM (178 E-steps here).
+    m, n = 12, 600
+    rng = np.random.default_rng(9)
+    X = np.linalg.cholesky(random_spd(11, m)) @ rng.standard_normal((m, n))
+    X[6:9] = X[0:3] + 0.2 * rng.standard_normal((3, n))
+    observed = np.ones((m, n), dtype=bool)
+    observed[6:9, 50:550] = False
+    observed[0:3, 300:330] = False
+    observed[3:6, 400:480] = False
+    start = np.zeros((m, n))
+    kwargs = dict(start=start, ridge=1e-4, max_iter=5000, tol=1e-9)
+    plain = gaussian.fit_normal(np.where(observed, X, 0.0), observed, accelerate=False,
+                                **kwargs)
+    fast = gaussian.fit_normal(np.where(observed, X, 0.0), observed, accelerate=True,
+                               **kwargs)
+    assert fast.iterations < plain.iterations / 3 < 5000 / 3
+    np.testing.assert_allclose(fast.filled, plain.filled, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(fast.precision, plain.precision, rtol=1e-5)
+    assert np.array_equal(fast.filled[observed], X[observed])
+
+
+def test_squarem_stops_at_its_e_step_budget():
+    m, n = 6, 200
+    rng = np.random.default_rng(3)
+    X = np.linalg.cholesky(random_spd(2, m)) @ rng.standard_normal((m, n))
+    observed = rng.random((m, n)) > 0.3
+    for budget in (1, 2, 5):
+        fit = gaussian.fit_normal(np.where(observed, X, 0.0), observed, start=np.zeros((m, n)),
+                                  max_iter=budget, tol=0.0)
+        assert fit.iterations == budget
 
 
 def affine_markers(seed: int, markers: int = 10, n: int = 500) -> np.ndarray:
