@@ -379,9 +379,11 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     - ``pca``: Gløersen & Federolf (2016), only when the clip has ≥ 60 complete frames
       (it needs them, and is then cheap).
     - ``gaussian``: :func:`mocapfill.solvers.gaussian.gap_fill` — the conditional
-      expectation under a normal law of the frames fitted by EM, smoothed over 1.25 frames
-      and joined to the data; the best single fill of the walking set's long gaps (2.00 mm
-      against TrNN's 2.31), offered where one EM iteration is cheap enough.
+      expectation under a normal law of the frames fitted by EM (60 E-steps, extrapolated
+      by SQUAREM: plain EM stopped there short of its fixed point, which cost the 02_05
+      ml = 60 cell), smoothed over 1.25 frames and joined to the data; the best single
+      fill of the walking set's long gaps (2.00 mm against TrNN's 2.31), offered where
+      one EM iteration is cheap enough.
     - ``tsmc``: :func:`mocapfill.solvers.tsmc.gap_fill` — Feng et al.'s nuclear norm with
       the temporal term, to ε = 1e−4, its smooth estimate not joined to the gap ends;
       offered on scattered loss only (≥ 2 % of the samples in runs under 5 frames; real
