@@ -221,6 +221,8 @@ def _squarem(FI, mean, cov, m_step, e_step, max_iter: int, tol: float):
         rr = sum(float(np.vdot(x, x)) for x in r)
         vv = sum(float(np.vdot(x, x)) for x in v)
         alpha = min(-np.sqrt(rr / vv), -1.0) if vv > 0 else -1.0
+        if not np.isfinite(alpha):
+            alpha = -1.0
         while alpha < -1.0:
             candidate = [t - 2 * alpha * a + alpha * alpha * b
                          for t, a, b in zip((mean, cov), r, v)]
@@ -231,6 +233,8 @@ def _squarem(FI, mean, cov, m_step, e_step, max_iter: int, tol: float):
 
 
 def _positive_definite(cov: np.ndarray) -> bool:
+    if not np.isfinite(cov).all():
+        return False
     try:
         np.linalg.cholesky(cov)
     except np.linalg.LinAlgError:

@@ -119,6 +119,13 @@ def test_squarem_reaches_the_em_fixed_point_in_fewer_e_steps():
     assert np.array_equal(fast.filled[observed], X[observed])
 
 
+def test_an_extrapolated_covariance_must_be_finite_and_positive_definite():
+    assert gaussian._positive_definite(np.eye(3))
+    assert not gaussian._positive_definite(np.diag([1.0, -1.0, 1.0]))
+    assert not gaussian._positive_definite(np.diag([1.0, np.nan, 1.0]))
+    assert not gaussian._positive_definite(np.diag([1.0, np.inf, 1.0]))
+
+
 def test_squarem_stops_at_its_e_step_budget():
     m, n = 6, 200
     rng = np.random.default_rng(3)
