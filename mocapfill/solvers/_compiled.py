@@ -74,10 +74,10 @@ _loading = threading.Lock()
 _EXPECTED = {BLAS: "daxpy", LAPACK: "dpotrf", POCKETFFT: "good_size"}
 
 
-def module(name: str, *, directly: bool = True) -> ModuleType:
+def module(name: str) -> ModuleType:
     """One of the extension modules above: scipy's own if scipy already imported it,
-    else loaded from its file (``directly``), else imported the usual way. Safe to call
-    from several threads at once.
+    else loaded from its file, else imported the usual way. Safe to call from several
+    threads at once.
     """
     found = _loaded.get(name)
     if found is not None:
@@ -87,7 +87,7 @@ def module(name: str, *, directly: bool = True) -> ModuleType:
         if found is None:
             if name in sys.modules:     # through the import system, which waits for
                 found = importlib.import_module(name)     # an import in progress
-            elif directly:
+            else:
                 found = _load_directly(name)
             if found is None or not hasattr(found, _EXPECTED.get(name, "__name__")):
                 found = importlib.import_module(name)
