@@ -376,11 +376,10 @@ def format_float(value: float) -> str:
     return text.removesuffix(".0")
 
 
-def frame_rows(motion: Motion, first_cells: Callable[[int], list[str]],
-               decimals: int | None) -> Iterator[list[str]]:
-    """Each frame's cells for a new text file: ``first_cells(frame)``, then x, y, z of every
-    marker (:func:`format_float`, or ``decimals`` fixed decimals), empty where the sample
-    is missing.
+def frame_rows(motion: Motion, rate: float, decimals: int | None) -> Iterator[list[str]]:
+    """Each frame's cells for a new text file: its frame number and time (``rate`` Hz),
+    then x, y, z of every marker (:func:`format_float`, or ``decimals`` fixed decimals),
+    empty where the sample is missing.
 
     The numbers are formatted all at once from one list of the clip's floats rather than
     one function call each (an 85_12-sized clip, 550,000 numbers: a TRC or CSV took about
@@ -395,7 +394,7 @@ def frame_rows(motion: Motion, first_cells: Callable[[int], list[str]],
             cells = [f"{value:.{decimals}f}" for value in values]
         for m in np.flatnonzero(missing[f]).tolist():
             cells[3 * m:3 * m + 3] = ("", "", "")
-        yield first_cells(f) + cells
+        yield [str(motion.first_frame + f), format_time(f / rate)] + cells
 
 
 def format_time(seconds: float) -> str:

@@ -77,7 +77,6 @@ from ._text import (
     ends_inside_row,
     first_frame_from,
     format_float,
-    format_time,
     frame_rate,
     frame_rows,
     is_blank,
@@ -200,7 +199,7 @@ def new_file_lines(motion: Motion, decimals: int | None = None) -> list[str]:
     lines = [f"# units: {motion.units}, rate: {format_float(rate)}\n",
              ",".join(header) + "\n"]
     lines.extend(",".join(cells) + "\n" for cells in frame_rows(
-        motion, lambda f: [str(motion.first_frame + f), format_time(f / rate)], decimals))
+        motion, rate, decimals))
     return lines
 
 

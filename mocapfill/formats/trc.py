@@ -81,7 +81,6 @@ from ._text import (
     ends_inside_row,
     first_frame_from,
     format_float,
-    format_time,
     frame_rate,
     frame_rows,
     parse_column,
@@ -245,7 +244,7 @@ def new_file_lines(motion: Motion, name: str, decimals: int | None = None) -> li
              "\n"]
     # Every cell, the last included, is followed by a tab.
     lines.extend("\t".join(cells) + "\t\n" for cells in frame_rows(
-        motion, lambda f: [str(motion.first_frame + f), format_time(f / rate)], decimals))
+        motion, rate, decimals))
     return lines
 
 
