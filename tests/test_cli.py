@@ -282,7 +282,7 @@ def test_ctrl_c_during_a_solve_leaves_without_finalising_under_the_solver_thread
     monkeypatch.setattr(os, "_exit", lambda code: exits.append(code) or sys.exit(code))
     started, release = threading.Event(), threading.Event()
 
-    def interrupted(jobs, lanes=None):
+    def interrupted(jobs, lanes=None, **options):
         worker = threading.Thread(target=lambda: (started.set(), release.wait(10)),
                                   name="mocapfill-0", daemon=True)
         worker.start()

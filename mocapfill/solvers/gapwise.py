@@ -861,13 +861,17 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     # Every candidate runs twice, on the validation mask and on the real one; the runs are
     # independent, so they share the cores: each candidate's two runs side by side, the
     # ``costly`` candidates first, so that no core is left alone with a long run at the
-    # end. A validation run keeps only its errors on the stand-ins, not its full fill.
+    # end. A validation run keeps only its errors on the stand-ins, not its full fill, so
+    # the validation runs may go to a process of their own (``apart``, where the process
+    # may fork: no thread waits for the interpreter's lock on the other's behalf).
     # The ``optional`` candidates' fills wait for the weights, which need the validation.
     if hidden:
         keys = [(kind, i) for i in order for kind in ("trial", "fill")
                 if kind == "trial" or names[i] not in optional]
         done = dict(zip(keys, run_all([trials[i] if kind == "trial" else fill_job(i)
-                                       for kind, i in keys])))
+                                       for kind, i in keys],
+                                      apart=[k for k, (kind, _) in enumerate(keys)
+                                             if kind == "trial"])))
         for i in range(len(names)):
             fills[i] = done.get(("fill", i))
         gather([done[("trial", i)] for i in range(len(names))])

@@ -319,6 +319,13 @@ def test_outliers_of_many_gaps_at_once_are_those_of_each_gap_alone():
     assert (batched[10:20, 6] == 0).all()
 
 
+@pytest.fixture
+def in_this_process(monkeypatch):
+    """Candidates run in this process, one after the other, so that the calls they record
+    are seen here (with more threads, the validation runs may go to a forked child)."""
+    monkeypatch.setenv("MOCAPFILL_THREADS", "1")
+
+
 def _counting(fn, calls: list, name: str):
     def candidate(matrix, observed):
         calls.append((name, observed.copy()))
@@ -326,7 +333,8 @@ def _counting(fn, calls: list, name: str):
     return candidate
 
 
-def test_a_borrowed_validation_weighs_the_fill_without_running_the_candidates_twice():
+def test_a_borrowed_validation_weighs_the_fill_without_running_the_candidates_twice(
+        in_this_process):
     from mocapfill.solvers._linalg import linear_fill
     from mocapfill.solvers.gapwise import Validation, blend
 
@@ -394,7 +402,7 @@ def test_costly_candidates_start_first_and_the_fill_does_not_depend_on_the_order
     np.testing.assert_array_equal(results[()], results[("slow",)])
 
 
-def test_optional_candidates_without_weight_are_not_run_on_the_real_mask():
+def test_optional_candidates_without_weight_are_not_run_on_the_real_mask(in_this_process):
     from mocapfill.solvers._linalg import linear_fill
     from mocapfill.solvers.gapwise import Validation, blend
 
@@ -431,7 +439,7 @@ def test_optional_candidates_without_weight_are_not_run_on_the_real_mask():
     np.testing.assert_allclose(filled, truth, atol=1e-12)
 
 
-def test_a_validator_runs_in_place_of_its_candidate_on_the_stand_ins_only():
+def test_a_validator_runs_in_place_of_its_candidate_on_the_stand_ins_only(in_this_process):
     from mocapfill.solvers._linalg import linear_fill
     from mocapfill.solvers.gapwise import blend
 
@@ -534,7 +542,7 @@ def test_regression_predicts_from_the_markers_nearest_the_gap_at_most_max_predic
                            regression_fill(moved, split, max_predictors=8)[0, 200:260])
 
 
-def test_stand_ins_leave_half_of_the_complete_frames():
+def test_stand_ins_leave_half_of_the_complete_frames(in_this_process):
     """Stand-ins that would leave the validation clip fewer than half of the clip's
     complete frames are dropped (the global candidate's warm start is their subspace)."""
     from mocapfill.solvers._linalg import linear_fill

@@ -1,6 +1,9 @@
 """Candidate fills run side by side (mocapfill.solvers._threads) without changing results."""
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import threading
 import time
 
@@ -151,3 +154,141 @@ def test_in_order_raises_the_first_failure_and_stops():
 
     with pytest.raises(ZeroDivisionError):
         list(in_order(3, {}, failing, at_once=2, ahead=3, threads=2))
+
+
+@pytest.fixture
+def forkable():
+    """This process with no thread but the main one (pools of earlier tests wound down),
+    on a system where run_all may put jobs in a forked child."""
+    if not sys.platform.startswith("linux"):
+        pytest.skip("jobs run apart in a forked child only on Linux")
+    for thread in threading.enumerate():
+        if thread is not threading.main_thread():
+            thread.join(timeout=10)
+    assert threading.active_count() == 1
+
+
+def test_jobs_apart_run_in_a_child_process_and_results_keep_the_jobs_order(forkable):
+    jobs = [lambda k=k: (k, os.getpid(), np.arange(k + 1.0)) for k in range(6)]
+    results = run_all(jobs, threads=2, apart=[1, 3, 4])
+    assert [k for k, _, _ in results] == list(range(6))
+    for k, pid, values in results:
+        assert (pid != os.getpid()) == (k in (1, 3, 4))
+        assert np.array_equal(values, np.arange(k + 1.0))
+
+
+def test_a_failing_job_apart_raises_in_the_caller(forkable):
+    class Unpicklable(Exception):
+        def __init__(self, message, *, code):
+            super().__init__(message)
+
+    def boom():
+        raise ValueError("apart failed")
+
+    def odd():
+        raise Unpicklable("cannot travel", code=3)
+
+    with pytest.raises(ValueError, match="apart failed"):
+        run_all([lambda: 1, boom, lambda: 3], threads=2, apart=[1])
+    with pytest.raises(RuntimeError, match="Unpicklable: cannot travel"):
+        run_all([lambda: 1, odd], threads=2, apart=[1])
+
+
+def test_the_jobs_of_a_child_that_dies_run_in_the_caller(forkable):
+    parent = os.getpid()
+
+    def dies_in_a_child():
+        if os.getpid() != parent:
+            os._exit(3)
+        return "here"
+
+    assert run_all([lambda: 1, dies_in_a_child], threads=2, apart=[1]) == [1, "here"]
+
+
+def test_no_child_while_another_thread_runs(forkable):
+    release = threading.Event()
+    other = threading.Thread(target=release.wait)
+    other.start()
+    try:
+        pids = run_all([os.getpid, os.getpid], threads=2, apart=[1])
+    finally:
+        release.set()
+        other.join()
+    assert pids == [os.getpid()] * 2
+
+
+def test_the_child_does_not_write_buffered_output_again(tmp_path):
+    script = ("import os, sys\n"
+              "from mocapfill.solvers._threads import run_all\n"
+              "sys.stdout.write('before ')\n"
+              "pids = run_all([os.getpid, os.getpid], threads=2, apart=[1])\n"
+              "sys.stdout.write(str(pids[0] != pids[1]))\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         check=True, env={**os.environ, "MOCAPFILL_THREADS": "2"}).stdout
+    expected = "before True" if sys.platform.startswith("linux") else "before False"
+    assert out == expected
+
+
+_LONG_CHILD = """
+import os, sys, time
+from mocapfill.solvers._threads import run_all
+
+def away():
+    with open(sys.argv[1], "w") as f:
+        f.write(str(os.getpid()))
+    time.sleep(60)
+
+try:
+    run_all([lambda: time.sleep(60), away], threads=2, apart=[1])
+except KeyboardInterrupt:
+    sys.exit(130)
+"""
+
+
+def _child_pid(path, process) -> int:
+    for _ in range(200):
+        if path.exists() and path.read_text():
+            return int(path.read_text())
+        assert process.poll() is None, process.communicate()
+        time.sleep(0.05)
+    raise AssertionError("the child never started")
+
+
+def _ended(pid: int) -> bool:
+    """Whether the process is gone (or a zombie waiting for a reaper)."""
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                if f.read().rsplit(")", 1)[1].split()[0] == "Z":
+                    return True
+        except FileNotFoundError:
+            return True
+        time.sleep(0.05)
+    return False
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a forked child on Linux")
+def test_ctrl_c_ends_the_child_and_the_parent_quietly(tmp_path):
+    import signal
+
+    process = subprocess.Popen([sys.executable, "-c", _LONG_CHILD, str(tmp_path / "pid")],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True)
+    child = _child_pid(tmp_path / "pid", process)
+    os.killpg(process.pid, signal.SIGINT)       # as a terminal's Ctrl-C: the whole group
+    _, err = process.communicate(timeout=20)
+    assert process.returncode == 130 and err == ""
+    assert _ended(child)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a forked child on Linux")
+def test_the_child_ends_when_its_parent_is_killed(tmp_path):
+    import signal
+
+    process = subprocess.Popen([sys.executable, "-c", _LONG_CHILD, str(tmp_path / "pid")],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    child = _child_pid(tmp_path / "pid", process)
+    process.send_signal(signal.SIGKILL)
+    process.wait(timeout=20)
+    assert _ended(child)
