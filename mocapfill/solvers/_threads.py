@@ -132,6 +132,8 @@ def _run_apart(jobs: Sequence[Callable[[], T]], apart: Sequence[int], threads: i
     one in another thread (0.17 s in another process); the blend's sixteen fills took
     0.85 s in two threads and 0.56 s split between two processes.
 
+    The child takes the jobs apart one at a time, in their order; this process takes
+    those left once its own are done (so neither core waits on the other's last jobs).
     The child inherits the jobs and their inputs (nothing is copied until written) and
     sends back its results through a pipe, pickled: hence small results only (the blend
     sends its validation errors, and keeps the full fills here). ``multiprocessing``
@@ -147,21 +149,27 @@ def _run_apart(jobs: Sequence[Callable[[], T]], apart: Sequence[int], threads: i
     sent = [jobs[k] for k in apart]
     child_threads = max(1, threads // 2)
     context = multiprocessing.get_context("fork")
+    ticket = context.Value("i", 0)             # the next job apart not yet taken
     receiver, sender = context.Pipe(duplex=False)
-    child = context.Process(target=_child, args=(sent, child_threads, sender, os.getpid()),
+    child = context.Process(target=_child, args=(sent, ticket, child_threads, sender,
+                                                 os.getpid()),
                             name="mocapfill-apart", daemon=True)
     child.start()
     sender.close()
     try:
         results = dict(zip(mine, run_all([jobs[k] for k in mine],
                                          max(1, threads - child_threads))))
+        # Then the jobs apart that the child has not taken yet, here.
+        here: dict[int, T] = {}
+        _taking(sent, ticket, here)()
         try:
             status, value = receiver.recv()
         except EOFError:                        # the child died without an answer
-            status, value = "ok", run_all(sent, threads)
+            rest = [k for k in range(len(sent)) if k not in here]
+            status, value = "ok", dict(zip(rest, run_all([sent[k] for k in rest], threads)))
         if status != "ok":
             raise value
-        results.update(zip(apart, value))
+        results.update((apart[k], v) for k, v in {**here, **value}.items())
     finally:
         receiver.close()
         if child.is_alive():
@@ -170,9 +178,25 @@ def _run_apart(jobs: Sequence[Callable[[], T]], apart: Sequence[int], threads: i
     return [results[k] for k in range(len(jobs))]
 
 
-def _child(jobs: Sequence[Callable[[], T]], threads: int, sender, parent: int) -> None:
-    """The body of :func:`_run_apart`'s child: run the jobs, send ("ok", results) or
-    ("error", exception).
+def _taking(jobs: Sequence[Callable[[], T]], ticket, done: dict[int, T]
+            ) -> Callable[[], None]:
+    """A job that takes the next of ``jobs`` not yet taken by anyone sharing ``ticket``,
+    runs it into ``done`` and goes on until none is left."""
+    def take() -> None:
+        while True:
+            with ticket.get_lock():
+                k = ticket.value
+                ticket.value = k + 1
+            if k >= len(jobs):
+                return
+            done[k] = jobs[k]()
+    return take
+
+
+def _child(jobs: Sequence[Callable[[], T]], ticket, threads: int, sender, parent: int
+           ) -> None:
+    """The body of :func:`_run_apart`'s child: run the jobs it takes, send ("ok", {index:
+    result}) or ("error", exception).
 
     Ctrl-C is left to the parent, which ends the child on its way out; the child also
     ends when the parent dies (Linux's parent-death signal), rather than compute on for
@@ -182,8 +206,10 @@ def _child(jobs: Sequence[Callable[[], T]], threads: int, sender, parent: int) -
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with(parent)
+    done: dict[int, T] = {}
     try:
-        answer = ("ok", run_all(jobs, threads))
+        run_all([_taking(jobs, ticket, done)] * threads, threads)
+        answer = ("ok", done)
     except BaseException as exc:  # re-raised in the parent
         try:
             pickle.loads(pickle.dumps(exc))

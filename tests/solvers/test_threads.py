@@ -168,13 +168,27 @@ def forkable():
     assert threading.active_count() == 1
 
 
+def _busy(seconds: float):
+    """A job of this process that keeps it busy while the child takes the jobs apart."""
+    return lambda: time.sleep(seconds) or os.getpid()
+
+
 def test_jobs_apart_run_in_a_child_process_and_results_keep_the_jobs_order(forkable):
     jobs = [lambda k=k: (k, os.getpid(), np.arange(k + 1.0)) for k in range(6)]
+    jobs[0] = lambda: (0, _busy(0.5)(), np.arange(1.0))
     results = run_all(jobs, threads=2, apart=[1, 3, 4])
     assert [k for k, _, _ in results] == list(range(6))
     for k, pid, values in results:
         assert (pid != os.getpid()) == (k in (1, 3, 4))
         assert np.array_equal(values, np.arange(k + 1.0))
+
+
+def test_this_process_takes_the_jobs_apart_left_once_its_own_are_done(forkable):
+    apart = [lambda k=k: (k, time.sleep(0.3) or os.getpid()) for k in range(6)]
+    results = run_all([os.getpid, *apart], threads=2, apart=range(1, 7))
+    assert [k for k, _ in results[1:]] == list(range(6))
+    where = {pid == os.getpid() for _, pid in results[1:]}
+    assert where == {True, False}               # some here, some in the child
 
 
 def test_a_failing_job_apart_raises_in_the_caller(forkable):
@@ -189,9 +203,9 @@ def test_a_failing_job_apart_raises_in_the_caller(forkable):
         raise Unpicklable("cannot travel", code=3)
 
     with pytest.raises(ValueError, match="apart failed"):
-        run_all([lambda: 1, boom, lambda: 3], threads=2, apart=[1])
+        run_all([_busy(0.5), boom, lambda: 3], threads=2, apart=[1])
     with pytest.raises(RuntimeError, match="Unpicklable: cannot travel"):
-        run_all([lambda: 1, odd], threads=2, apart=[1])
+        run_all([_busy(0.5), odd], threads=2, apart=[1])
 
 
 def test_the_jobs_of_a_child_that_dies_run_in_the_caller(forkable):
@@ -202,7 +216,7 @@ def test_the_jobs_of_a_child_that_dies_run_in_the_caller(forkable):
             os._exit(3)
         return "here"
 
-    assert run_all([lambda: 1, dies_in_a_child], threads=2, apart=[1]) == [1, "here"]
+    assert run_all([_busy(0.5), dies_in_a_child], threads=2, apart=[1]) == [parent, "here"]
 
 
 def test_no_child_while_another_thread_runs(forkable):
@@ -218,10 +232,11 @@ def test_no_child_while_another_thread_runs(forkable):
 
 
 def test_the_child_does_not_write_buffered_output_again(tmp_path):
-    script = ("import os, sys\n"
+    script = ("import os, sys, time\n"
               "from mocapfill.solvers._threads import run_all\n"
               "sys.stdout.write('before ')\n"
-              "pids = run_all([os.getpid, os.getpid], threads=2, apart=[1])\n"
+              "busy = lambda: time.sleep(0.5) or os.getpid()\n"
+              "pids = run_all([busy, os.getpid], threads=2, apart=[1])\n"
               "sys.stdout.write(str(pids[0] != pids[1]))\n")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                          check=True, env={**os.environ, "MOCAPFILL_THREADS": "2"}).stdout
