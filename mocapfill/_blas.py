@@ -77,3 +77,15 @@ def single_threaded() -> Iterator[None]:
         if _depth == 0 and _limiter is not None:
             _limiter.restore_original_limits()
             _limiter = None
+
+
+def threads_now() -> int:
+    """The most threads any loaded BLAS library would use now (1 when none is loaded).
+
+    Read from the libraries themselves (threadpoolctl): the environment does not tell
+    when it was set after numpy loaded its BLAS.
+    """
+    from threadpoolctl import threadpool_info
+
+    return max((info["num_threads"] for info in threadpool_info()
+                if info["user_api"] == "blas"), default=1)

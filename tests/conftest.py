@@ -6,6 +6,15 @@ from pathlib import Path
 
 import pytest
 
+from mocapfill._blas import one_thread_by_default
+
+# BLAS on one thread for the whole suite, as the command line has it (mocapfill/cli.py sets
+# the variables before numpy loads). Without this, the first test module importing the
+# command line set them after numpy had loaded BLAS on every core: the rest of the suite
+# ran threaded BLAS while mocapfill took the variables for the user's choice, and the
+# real-data tests took 6 times as long.
+one_thread_by_default()
+
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 

@@ -111,3 +111,16 @@ def test_a_thread_count_set_in_the_environment_is_left_alone():
     out = run_script({"OMP_NUM_THREADS": "2"})
     assert out["repair"] == [[3]]
     assert out["run_all"] == [[3], [3]]
+
+
+def test_threads_now_reads_the_libraries_not_the_environment():
+    import numpy as np
+    from threadpoolctl import threadpool_limits
+
+    from mocapfill._blas import threads_now
+
+    np.ones((2, 2)) @ np.ones((2, 2))           # numpy's BLAS is loaded
+    with threadpool_limits(limits=1, user_api="blas"):
+        assert threads_now() == 1
+    with threadpool_limits(limits=2, user_api="blas"):    # as on a one-core machine too
+        assert threads_now() == 2

@@ -219,6 +219,13 @@ def test_the_jobs_of_a_child_that_dies_run_in_the_caller(forkable):
     assert run_all([_busy(0.5), dies_in_a_child], threads=2, apart=[1]) == [parent, "here"]
 
 
+def test_no_child_where_blas_runs_threads_of_its_own(forkable, monkeypatch):
+    from mocapfill.solvers import _threads
+
+    monkeypatch.setattr(_threads, "blas_threads_now", lambda: 2)
+    assert run_all([_busy(0.2), os.getpid], threads=2, apart=[1]) == [os.getpid()] * 2
+
+
 def test_no_child_while_another_thread_runs(forkable):
     release = threading.Event()
     other = threading.Thread(target=release.wait)
