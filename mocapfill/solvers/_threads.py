@@ -122,13 +122,22 @@ def run_all(jobs: Sequence[Callable[[], T]], threads: int | None = None, *,
 def _may_fork() -> bool:
     """Whether a child process may be forked here: on Linux, from a process whose only
     thread is this one (a fork copies no other thread, and a lock another thread held
-    would stay locked in the child), with BLAS on one thread. macOS frameworks are not
+    would stay locked in the child), not itself a daemonic worker process, with BLAS on
+    one thread. macOS frameworks are not
     safe to use after a fork. Where the user asked for threaded BLAS
     (``OPENBLAS_NUM_THREADS=2``), two processes would each run their BLAS threads on the
     same cores: 85_02 ml = 40 took 21 s so, against 7.8 s with threads (and 1 s with one
     BLAS thread)."""
     return (sys.platform.startswith("linux") and hasattr(os, "fork")
-            and threading.active_count() == 1 and blas_threads_now() == 1)
+            and threading.active_count() == 1 and not _daemonic()
+            and blas_threads_now() == 1)
+
+
+def _daemonic() -> bool:
+    """Whether this is a daemonic ``multiprocessing`` process (the workers of a
+    ``multiprocessing.Pool``, of Dask's nanny), which may not start children of its own."""
+    mp = sys.modules.get("multiprocessing")     # not imported: not such a process
+    return mp is not None and bool(mp.current_process().daemon)
 
 
 def _run_apart(jobs: Sequence[Callable[[], T]], apart: Sequence[int], threads: int
@@ -150,7 +159,8 @@ def _run_apart(jobs: Sequence[Callable[[], T]], apart: Sequence[int], threads: i
     flushes standard output and error before the fork, so the child does not write this
     process's buffered text a second time (tested). An exception raised by a child's job
     is raised here (as a RuntimeError with its message where it cannot be pickled); if
-    the child dies without an answer (killed, out of memory), its jobs run here.
+    the child dies without an answer (killed, out of memory), its jobs run here; where no
+    child can be started, threads run them all.
     """
     import multiprocessing
 
@@ -159,12 +169,22 @@ def _run_apart(jobs: Sequence[Callable[[], T]], apart: Sequence[int], threads: i
     sent = [jobs[k] for k in apart]
     child_threads = max(1, threads // 2)
     context = multiprocessing.get_context("fork")
-    ticket = context.Value("i", 0)             # the next job apart not yet taken
+    # Where there are no working semaphores (sem_open: some containers), or the fork is
+    # refused (a process limit, no memory to map), the threads do the work.
+    try:
+        ticket = context.Value("i", 0)         # the next job apart not yet taken
+    except (OSError, ImportError):
+        return _run_threaded(jobs, threads)
     receiver, sender = context.Pipe(duplex=False)
     child = context.Process(target=_child, args=(sent, ticket, child_threads, sender,
                                                  os.getpid()),
                             name="mocapfill-apart", daemon=True)
-    child.start()
+    try:
+        child.start()
+    except OSError:
+        receiver.close()
+        sender.close()
+        return _run_threaded(jobs, threads)
     sender.close()
     try:
         results = dict(zip(mine, run_all([jobs[k] for k in mine],

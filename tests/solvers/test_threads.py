@@ -226,6 +226,31 @@ def test_no_child_where_blas_runs_threads_of_its_own(forkable, monkeypatch):
     assert run_all([_busy(0.2), os.getpid], threads=2, apart=[1]) == [os.getpid()] * 2
 
 
+def _pids_of_jobs_apart(_) -> tuple[int, list[int]]:
+    return os.getpid(), run_all([_busy(0.2), os.getpid], threads=2, apart=[1])
+
+
+def test_no_child_in_a_daemonic_worker_process(forkable):
+    # A multiprocessing.Pool's workers are daemonic, and may not start children: the jobs
+    # apart run in the worker (before, Process.start raised an AssertionError there).
+    import multiprocessing
+
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        worker, pids = pool.map(_pids_of_jobs_apart, [0])[0]
+    assert pids == [worker, worker]
+
+
+def test_threads_do_the_work_where_no_child_can_be_started(forkable, monkeypatch):
+    import multiprocessing.context
+
+    def refused(self):
+        raise OSError(11, "Resource temporarily unavailable")       # fork's EAGAIN
+
+    monkeypatch.setattr(multiprocessing.context.ForkProcess, "start", refused)
+    names = run_all([lambda: threading.current_thread().name] * 2, threads=2, apart=[1])
+    assert set(names) <= {"mocapfill-0", "mocapfill-1"}
+
+
 def test_no_child_while_another_thread_runs(forkable):
     release = threading.Event()
     other = threading.Thread(target=release.wait)
