@@ -228,13 +228,16 @@ def _child(jobs: Sequence[Callable[[], T]], ticket, threads: int, sender, parent
     """The body of :func:`_run_apart`'s child: run the jobs it takes, send ("ok", {index:
     result}) or ("error", exception).
 
-    Ctrl-C is left to the parent, which ends the child on its way out; the child also
-    ends when the parent dies (Linux's parent-death signal), rather than compute on for
-    no one. Nothing escapes: ``multiprocessing`` would print a traceback.
+    Ctrl-C is left to the parent, which ends the child on its way out (SIGTERM, whose
+    default action is restored: a handler the program installed would keep the child
+    alive); the child also ends when the parent dies (Linux's parent-death signal),
+    rather than compute on for no one. Nothing escapes: ``multiprocessing`` would print a
+    traceback.
     """
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _die_with(parent)
     done: dict[int, T] = {}
     try:

@@ -277,7 +277,7 @@ def test_the_child_does_not_write_buffered_output_again(tmp_path):
 
 
 _LONG_CHILD = """
-import os, sys, time
+import os, signal, sys, time
 from mocapfill.solvers._threads import run_all
 
 def away():
@@ -285,6 +285,8 @@ def away():
         f.write(str(os.getpid()))
     time.sleep(60)
 
+# A program's own SIGTERM handler must not keep the child alive once the parent ends it.
+signal.signal(signal.SIGTERM, lambda *_: None)
 try:
     run_all([lambda: time.sleep(60), away], threads=2, apart=[1])
 except KeyboardInterrupt:
