@@ -120,14 +120,13 @@ def run_all(jobs: Sequence[Callable[[], T]], threads: int | None = None, *,
 
 
 def _may_fork() -> bool:
-    """Whether a child process may be forked here: on Linux, from a process whose only
-    thread is this one (a fork copies no other thread, and a lock another thread held
-    would stay locked in the child), not itself a daemonic worker process, with BLAS on
-    one thread. macOS frameworks are not
-    safe to use after a fork. Where the user asked for threaded BLAS
-    (``OPENBLAS_NUM_THREADS=2``), two processes would each run their BLAS threads on the
-    same cores: 85_02 ml = 40 took 21 s so, against 7.8 s with threads (and 1 s with one
-    BLAS thread)."""
+    """Whether a child process may be forked here: on Linux (macOS frameworks are not
+    safe to use after a fork), from a process whose only thread is this one (a fork
+    copies no other thread, and a lock another thread held would stay locked in the
+    child), not itself a daemonic worker process, with BLAS on one thread. Where the user
+    asked for threaded BLAS (``OPENBLAS_NUM_THREADS=2``), two processes would each run
+    their BLAS threads on the same cores: 85_02 ml = 40 took 21 s so, against 7.8 s with
+    threads (and 1 s with one BLAS thread)."""
     return (sys.platform.startswith("linux") and hasattr(os, "fork")
             and threading.active_count() == 1 and not _daemonic()
             and blas_threads_now() == 1)
