@@ -47,22 +47,61 @@ class SpeedRow:
     notes: list[str] = field(default_factory=list)
 
 
-# Runs its arguments as a command and prints "wall-seconds peak-RSS-KB exit-status". The
+# Runs its arguments as a command and prints "wall-seconds peak-memory-KB exit-status". The
 # command is started from this small, fresh process, not from the benchmark's: on Linux a
 # process forked from a large one reports that one's resident size as its own peak (the
 # address space it replaced at exec counts), so 85_12's repair, a 208 MB process, was
 # reported at 478 MB once the benchmark had grown that large.
+# The command's memory is that of all its processes: the repair forks children (the
+# blend's validation, the windows of a long clip), which share the parent's pages until
+# one of them writes. So the peak is the larger of the command's own peak RSS (with its
+# descendants', each alone) and the largest sum, sampled every 0.1 s in a thread (the wall
+# time is the exit's), of the proportional set sizes (PSS: a shared page counted once,
+# split between its sharers) of the command and its descendants (Linux's /proc).
 _TIMER = """
-import os, subprocess, sys, time
+import os, subprocess, sys, threading, time
+
+def tree(pid):
+    pids = [pid]
+    try:
+        for task in os.listdir(f"/proc/{pid}/task"):
+            with open(f"/proc/{pid}/task/{task}/children") as f:
+                for child in f.read().split():
+                    pids += tree(int(child))
+    except OSError:
+        pass
+    return pids
+
+def pss_kb(pid):
+    try:
+        with open(f"/proc/{pid}/smaps_rollup") as f:
+            for line in f:
+                if line.startswith("Pss:"):
+                    return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+def sample(pid, done, peak):
+    while not done.wait(0.1):
+        peak[0] = max(peak[0], sum(pss_kb(p) for p in tree(pid)))
+
 started = time.perf_counter()
 child = subprocess.Popen(sys.argv[1:], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+done, peak = threading.Event(), [0]
+sampler = threading.Thread(target=sample, args=(child.pid, done, peak), daemon=True)
+sampler.start()
 _, status, usage = os.wait4(child.pid, 0)
-print(time.perf_counter() - started, usage.ru_maxrss, os.waitstatus_to_exitcode(status))
+wall = time.perf_counter() - started
+done.set()
+sampler.join()
+print(wall, max(peak[0], usage.ru_maxrss), os.waitstatus_to_exitcode(status))
 """
 
 
 def _run_child(args: list[str]) -> tuple[float, float, int]:
-    """Wall seconds, peak RSS (MB) and exit status of one command in a new process."""
+    """Wall seconds, peak memory (MB, see ``_TIMER``) and exit status of one command in a
+    new process."""
     timer = subprocess.run([sys.executable, "-c", _TIMER, *args], capture_output=True,
                            text=True, check=True)
     wall, rss_kb, code = timer.stdout.split()
@@ -262,7 +301,7 @@ def format_speed_table(rows: list[SpeedRow]) -> str:
         return f"{value:.{digits}f}" if isinstance(value, float) else str(value)
 
     lines = ["| case | method | wall min / median / max (s) | target (s) | iterations | "
-             "ms/iter | floor ms/iter | peak RSS (MB) |",
+             "ms/iter | floor ms/iter | peak memory (MB) |",
              "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r.case} | {r.method} | {f(r.wall_min_s)} / {f(r.wall_median_s)} / "

@@ -299,7 +299,7 @@ def _window_fills(matrix: np.ndarray, observed: np.ndarray, bounds: list[tuple[i
             return fill, (validation if k not in needs else None)
 
         yield from in_order(len(bounds), needs, job, at_once=at_once,
-                            ahead=2 * VALIDATE_EVERY + at_once, threads=threads)
+                            ahead=2 * VALIDATE_EVERY + at_once, threads=threads, apart=True)
         return
     if not lends:
         for k in range(len(bounds)):

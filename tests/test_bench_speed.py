@@ -1,5 +1,8 @@
 """The speed benchmark's machinery (timings themselves are never asserted)."""
+import sys
+
 import numpy as np
+import pytest
 
 from mocapfill.bench_speed import SpeedRow, _synthetic, format_speed_table, iteration_floor_ms
 
@@ -58,8 +61,6 @@ def test_big_cases_are_timed_once_and_without_the_comparison_methods(monkeypatch
 
 
 def test_a_childs_peak_memory_is_its_own_not_the_benchmarks():
-    import sys
-
     from mocapfill.bench_speed import _run_child
 
     ballast = np.ones(25_000_000)            # 200 MB resident in this process
@@ -67,6 +68,26 @@ def test_a_childs_peak_memory_is_its_own_not_the_benchmarks():
     assert ballast[-1] == 1.0
     assert code == 3 and wall > 0
     assert 0 < rss_mb < 100                 # a bare interpreter, not this process's 200 MB
+
+
+_TWO_PROCESSES = """
+import os, time
+pid = os.fork()
+ballast = bytearray(200 * 2**20)            # 200 MB in each process, written: private
+time.sleep(1.5)
+if pid == 0:
+    os._exit(0)
+os.waitpid(pid, 0)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc is Linux's")
+def test_a_commands_peak_memory_counts_all_its_processes_at_once():
+    from mocapfill.bench_speed import _run_child
+
+    wall, memory_mb, code = _run_child([sys.executable, "-c", _TWO_PROCESSES])
+    assert code == 0 and wall > 1.5
+    assert memory_mb > 380                   # both at once; each alone peaks at ~210
 
 
 def test_the_benchmark_times_the_package_byte_compiled(monkeypatch):

@@ -1,3 +1,7 @@
+import json
+import os
+import time
+
 import numpy as np
 import pytest
 
@@ -337,8 +341,15 @@ def test_long_clips_report_each_window_within_reporting_windows():
 
 
 # A stand-in for a method that lends validation between windows (``fn.windowed``): the
-# spline's fill, and a record of which validations each window was lent.
-WINDOWED_CALLS: list = []
+# spline's fill, and a record of which validations each window was lent, kept in a file
+# (the windows of a long clip may each be solved in a child process of their own).
+WINDOWED_CALLS: dict = {}
+
+
+def _windowed_calls() -> list:
+    with open(WINDOWED_CALLS["path"]) as f:
+        return [(tuple(name), tuple(tuple(lent) for lent in borrowed))
+                for name, borrowed in map(json.loads, f)]
 
 
 def fake_windowed_method(matrix, observed, **options):
@@ -350,7 +361,8 @@ def fake_windowed_method(matrix, observed, **options):
 def _fake_windowed(matrix, observed, *, borrowed, **options):
     # A window is named by its first missing sample (row, frame), distinct in the test clip.
     name = tuple(int(v) for v in np.argwhere(~observed)[0])
-    WINDOWED_CALLS.append((name, tuple(borrowed)))
+    with open(WINDOWED_CALLS["path"], "a") as f:
+        f.write(json.dumps([name, borrowed]) + "\n")
     return fake_windowed_method(matrix, observed), (None if borrowed else name)
 
 
@@ -359,14 +371,15 @@ fake_windowed_method.windowed = _fake_windowed
 
 @pytest.mark.parametrize("threads", ["1", "2", "3"])
 def test_windows_between_validated_ones_borrow_their_neighbours_validations(monkeypatch,
-                                                                            threads):
+                                                                            threads, tmp_path):
     from mocapfill import pipeline
     from mocapfill.solvers import METHODS
 
     monkeypatch.setitem(METHODS, "lender", "tests.test_pipeline:fake_windowed_method")
     monkeypatch.setattr(pipeline, "VALIDATE_EVERY", 2)
     monkeypatch.setenv("MOCAPFILL_THREADS", threads)
-    WINDOWED_CALLS.clear()
+    monkeypatch.setitem(WINDOWED_CALLS, "path", tmp_path / "calls")
+    (tmp_path / "calls").touch()
     truth = smooth_clip(4700, 5)
     gapped = truth
     for marker, start in [(0, 300), (1, 1200), (2, 2000), (3, 2900), (4, 3500), (0, 4400)]:
@@ -379,8 +392,9 @@ def test_windows_between_validated_ones_borrow_their_neighbours_validations(monk
                                    window_overlap=200)
     # Windows 0, 2, 4 and the last validate themselves; window 1 is lent the validations
     # of 0 and 2, window 3 those of 2 and 4. Each window is solved once.
-    calls = dict(WINDOWED_CALLS)
-    assert len(WINDOWED_CALLS) == 6 and set(calls) == set(names)
+    made = _windowed_calls()
+    calls = dict(made)
+    assert len(made) == 6 and set(calls) == set(names)
     assert {names.index(n) for n, lent in calls.items() if not lent} == {0, 2, 4, 5}
     assert calls[names[1]] == (names[0], names[2])
     assert calls[names[3]] == (names[2], names[4])
@@ -474,26 +488,29 @@ MEETING: dict = {}
 
 
 def meeting_method(matrix, observed, **options):
-    with MEETING["lock"]:
-        MEETING["arrivals"].append(None)
-        first_two = len(MEETING["arrivals"]) <= 2
-    if first_two:
-        MEETING["barrier"].wait()
+    # Each call leaves a file in MEETING["folder"] (the windows may be solved in threads or
+    # in child processes); the first two to arrive wait until both are there.
+    folder = MEETING["folder"]
+    (folder / f"{os.getpid()}-{time.monotonic_ns()}").touch()
+    if len(list(folder.iterdir())) <= 2:
+        deadline = time.monotonic() + 20
+        while len(list(folder.iterdir())) < 2:
+            assert time.monotonic() < deadline, "no second window came"
+            time.sleep(0.01)
     return fake_windowed_method(matrix, observed)
 
 
-def test_small_windows_are_solved_side_by_side_large_ones_one_at_a_time(monkeypatch):
-    import threading
-
+def test_small_windows_are_solved_side_by_side_large_ones_one_at_a_time(monkeypatch,
+                                                                        tmp_path):
     from mocapfill import pipeline
     from mocapfill.solvers import METHODS
 
     # 41 markers in 12,000-frame windows fit the budget several at a time; 300 do not.
     assert pipeline.windows_at_once(123, 12_000) >= 2
     assert pipeline.windows_at_once(900, 12_000) == 1
-    # Two windows in progress at once: the first two to start must meet at the barrier
-    # (one window at a time, the first would wait alone and time out).
-    MEETING.update(barrier=threading.Barrier(2, timeout=20), arrivals=[], lock=threading.Lock())
+    # Two windows in progress at once: the first two to start must meet (one window at a
+    # time, the first would wait alone and fail).
+    monkeypatch.setitem(MEETING, "folder", tmp_path)
     monkeypatch.setitem(METHODS, "meeting", "tests.test_pipeline:meeting_method")
     monkeypatch.setenv("MOCAPFILL_THREADS", "2")
     clip = smooth_clip(2600, 5)
@@ -502,7 +519,7 @@ def test_small_windows_are_solved_side_by_side_large_ones_one_at_a_time(monkeypa
     matrix, observed = clip.matrix()
     got = pipeline.complete_matrix(matrix, observed, "meeting", window_frames=1000,
                                    window_overlap=200)
-    assert len(MEETING["arrivals"]) == 3           # one call per window
+    assert len(list(tmp_path.iterdir())) == 3     # one call per window
     expected = pipeline.complete_matrix(matrix, observed, "spline", window_frames=1000,
                                         window_overlap=200)
     np.testing.assert_array_equal(got, expected)

@@ -294,6 +294,26 @@ except KeyboardInterrupt:
 """
 
 
+# The same with the jobs of in_order, each in a child of its own.
+_LONG_JOBS = """
+import os, signal, sys, time
+from mocapfill.solvers._threads import in_order
+
+def job(k, lent):
+    if k == 1:
+        with open(sys.argv[1], "w") as f:
+            f.write(str(os.getpid()))
+    time.sleep(60)
+    return k, None
+
+signal.signal(signal.SIGTERM, lambda *_: None)
+try:
+    list(in_order(2, {}, job, at_once=2, ahead=2, apart=True))
+except KeyboardInterrupt:
+    sys.exit(130)
+"""
+
+
 def _child_pid(path, process) -> int:
     for _ in range(200):
         if path.exists() and path.read_text():
@@ -318,10 +338,11 @@ def _ended(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a forked child on Linux")
-def test_ctrl_c_ends_the_child_and_the_parent_quietly(tmp_path):
+@pytest.mark.parametrize("script", [_LONG_CHILD, _LONG_JOBS], ids=["run_all", "in_order"])
+def test_ctrl_c_ends_the_child_and_the_parent_quietly(tmp_path, script):
     import signal
 
-    process = subprocess.Popen([sys.executable, "-c", _LONG_CHILD, str(tmp_path / "pid")],
+    process = subprocess.Popen([sys.executable, "-c", script, str(tmp_path / "pid")],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                start_new_session=True)
     child = _child_pid(tmp_path / "pid", process)
@@ -332,12 +353,131 @@ def test_ctrl_c_ends_the_child_and_the_parent_quietly(tmp_path):
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a forked child on Linux")
-def test_the_child_ends_when_its_parent_is_killed(tmp_path):
+@pytest.mark.parametrize("script", [_LONG_CHILD, _LONG_JOBS], ids=["run_all", "in_order"])
+def test_the_child_ends_when_its_parent_is_killed(tmp_path, script):
     import signal
 
-    process = subprocess.Popen([sys.executable, "-c", _LONG_CHILD, str(tmp_path / "pid")],
+    process = subprocess.Popen([sys.executable, "-c", script, str(tmp_path / "pid")],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     child = _child_pid(tmp_path / "pid", process)
     process.send_signal(signal.SIGKILL)
     process.wait(timeout=20)
     assert _ended(child)
+
+
+def _timed_job(k, lent):
+    """A job of in_order run apart: its process, when it ran, what it was lent."""
+    start = time.monotonic()
+    time.sleep(0.2)
+    return (k, os.getpid(), start, time.monotonic(), dict(lent)), f"lend{k}"
+
+
+def test_in_order_apart_runs_each_job_in_a_child_and_lends_between_them(forkable):
+    from mocapfill.solvers._threads import in_order
+
+    needs = {1: (0, 3), 2: (0, 3), 4: (3, 5)}
+    consumed = {}
+    outputs = []
+    for out in in_order(6, needs, _timed_job, at_once=2, ahead=4, apart=True):
+        consumed[out[0]] = time.monotonic()
+        outputs.append(out)
+    assert [k for k, *_ in outputs] == list(range(6))
+    assert os.getpid() not in {pid for _, pid, *_ in outputs}
+    lent = {k: seen for k, _, _, _, seen in outputs}
+    assert lent[1] == lent[2] == {0: "lend0", 3: "lend3"} and lent[4] == {3: "lend3", 5: "lend5"}
+    assert lent[0] == lent[3] == lent[5] == {}
+    # Two at a time, never more, and no job more than ``ahead`` past the next output due.
+    spans = sorted((start, stop) for _, _, start, stop, _ in outputs)
+    overlapping = [sum(a < stop and start < b for a, b in spans) for start, stop in spans]
+    assert max(overlapping) == 2
+    for k, _, start, _, _ in outputs:
+        assert k < 4 or start >= consumed[k - 4]
+
+
+def _failing_job(k, lent):
+    if k == 2:
+        raise ValueError("window 2 failed")
+    time.sleep(0.05)
+    return k, None
+
+
+class _Unpicklable(Exception):
+    def __init__(self, message, *, code):
+        super().__init__(message)
+
+
+def _unpicklable_failure(k, lent):
+    raise _Unpicklable("cannot travel", code=3)
+
+
+def test_in_order_apart_raises_the_first_failure_after_the_outputs_before_it(forkable):
+    from mocapfill.solvers._threads import in_order
+
+    got = []
+    with pytest.raises(ValueError, match="window 2 failed"):
+        for out in in_order(40, {}, _failing_job, at_once=2, ahead=3, apart=True):
+            got.append(out)
+    assert got == [0, 1]
+    with pytest.raises(RuntimeError, match="_Unpicklable: cannot travel"):
+        list(in_order(3, {}, _unpicklable_failure, at_once=2, ahead=3, apart=True))
+    assert not _our_children()                  # every child ended and reaped
+
+
+def _our_children() -> list[int]:
+    with open(f"/proc/{os.getpid()}/task/{threading.get_native_id()}/children") as f:
+        return [int(pid) for pid in f.read().split()]
+
+
+def test_in_order_apart_runs_the_job_of_a_child_that_dies_here(forkable):
+    from mocapfill.solvers._threads import in_order
+
+    parent = os.getpid()
+
+    def dies_in_a_child(k, lent):
+        if os.getpid() != parent:
+            os._exit(3)
+        return (k, os.getpid()), None
+
+    assert list(in_order(3, {}, dies_in_a_child, at_once=2, ahead=3, apart=True)) == \
+        [(k, parent) for k in range(3)]
+
+
+def test_in_order_apart_runs_jobs_here_where_no_child_can_be_started(forkable, monkeypatch):
+    import multiprocessing.context
+
+    from mocapfill.solvers._threads import in_order
+
+    def refused(self):
+        raise OSError(11, "Resource temporarily unavailable")       # fork's EAGAIN
+
+    monkeypatch.setattr(multiprocessing.context.ForkProcess, "start", refused)
+    outputs = list(in_order(3, {}, lambda k, lent: ((k, os.getpid()), None), at_once=2,
+                            ahead=3, apart=True))
+    assert outputs == [(k, os.getpid()) for k in range(3)]
+
+
+def _names_of_fills(k, lent):
+    return run_all([lambda: threading.current_thread().name] * 3), None
+
+
+def test_the_jobs_apart_fill_on_one_thread_each(forkable, monkeypatch):
+    from mocapfill.solvers._threads import in_order
+
+    monkeypatch.setenv("MOCAPFILL_THREADS", "2")
+    for names in in_order(2, {}, _names_of_fills, at_once=2, ahead=2, apart=True):
+        assert names == ["MainThread"] * 3
+
+
+def test_in_order_apart_uses_threads_beside_another_thread(forkable):
+    from mocapfill.solvers._threads import in_order
+
+    release = threading.Event()
+    other = threading.Thread(target=release.wait)
+    other.start()
+    try:
+        pids = list(in_order(2, {}, lambda k, lent: (os.getpid(), None), at_once=2,
+                             ahead=2, apart=True))
+    finally:
+        release.set()
+        other.join()
+    assert pids == [os.getpid()] * 2
