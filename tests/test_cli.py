@@ -359,3 +359,50 @@ def test_an_output_name_ending_in_a_slash_is_a_usage_error_not_a_file(clip_files
     assert result.exit_code == 2, result.output
     assert result.stderr.count("\n") == 1 and "ends with '/'" in result.stderr
     assert sorted(p.name for p in clip_files.iterdir()) == before
+
+
+_COMMAND = [sys.executable, "-m", "mocapfill.cli"]
+
+
+@pytest.mark.parametrize(("args", "code", "stream", "words"), [
+    (["repair", "gapped.npz", "out.npz"], 0, "stderr", "2 gaps filled"),
+    (["repair", "gapped.npz", "out.npz", "--max-gap", "10", "--check"], 1, "stderr",
+     "left"),
+    (["repair", "missing.npz", "out.npz"], 2, "stderr", "no such file"),
+    (["repair", "broken.c3d", "out.npz"], 123, "stderr", "broken.c3d"),
+    (["info", "gapped.npz", "--json"], 0, "stdout", '"frames": 300, "markers": 10'),
+])
+def test_the_command_exits_with_its_code_and_its_output_flushed(clip_files, args, code,
+                                                                  stream, words):
+    # The command ends without Python's finalisation (cli.run): its exit code and
+    # everything it printed must still come out.
+    import subprocess
+
+    (clip_files / "broken.c3d").write_bytes(b"\x02P" + bytes(100))
+    done = subprocess.run(_COMMAND + args, cwd=clip_files, capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == code, done.stderr
+    assert words in getattr(done, stream)
+    if code == 0 and args[0] == "repair":
+        assert formats.read(clip_files / "out.npz").observed.all()
+
+
+_WITH_A_THREAD = """
+import atexit, sys, threading, time
+from mocapfill.cli import run
+if sys.argv[1] == "thread":
+    threading.Thread(target=time.sleep, args=(0.3,)).start()
+atexit.register(lambda: print("finalised", flush=True))
+sys.argv = ["mocapfill", "--version"]
+run()
+"""
+
+
+@pytest.mark.parametrize("other", ["none", "thread"])
+def test_the_command_exits_at_once_unless_another_thread_runs(other):
+    import subprocess
+
+    done = subprocess.run([sys.executable, "-c", _WITH_A_THREAD, other], capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 0 and "version" in done.stdout
+    assert ("finalised" in done.stdout) == (other == "thread")

@@ -10,10 +10,10 @@ The windows of a long clip are solved side by side by :func:`in_order`, their fi
 one queue for the same threads: a window's serial steps (validation bookkeeping, the blend)
 and the last long fill of its batch no longer leave a core idle.
 
-On a clip of a few thousand frames the numpy operations are small, and two threads spent
-much of their time waiting for each other at the interpreter's lock: the runs whose
-results are small (the blend's validation) then go to a forked child process
-(:func:`run_all`'s ``apart``), where the system allows it.
+Threads still spent much of their time waiting for each other at the interpreter's lock.
+Where the system allows it, the blend's runs whose results are small (its validation) go
+to a forked child process (:func:`run_all`'s ``apart``), and the windows of a long clip
+each to a child process of their own (:func:`in_order`'s ``apart``).
 
 ``MOCAPFILL_THREADS`` sets how many threads (a positive integer; default: the cores this
 process may use, at most 8). The batch runner's worker processes set it to 1, since they
