@@ -40,26 +40,29 @@ def low_rank_start(matrix: np.ndarray, observed: np.ndarray, *, rank: int,
                    rounds: int = 8, ridge: float = 1e-3) -> np.ndarray:
     """A rank-``rank`` completion of ``matrix`` by alternating least squares.
 
-    Returns a full matrix equal to ``matrix`` on ``observed``. Only the incomplete frames
-    are projected: a complete frame keeps its data, so its coefficients were never read
-    (on 85_12 with ten 40-frame gaps, 400 of 4500 frames; the projection of them all was
-    0.035 s of each of the blend's TrNN and Gaussian runs).
+    Returns a full matrix equal to ``matrix`` on ``observed``. From the complete frames'
+    subspace, only the incomplete frames are projected: a complete frame keeps its data,
+    so its coefficients were never read (on 85_12 with ten 40-frame gaps, 400 of 4500
+    frames; the projection of them all was 0.035 s of each of the blend's TrNN and
+    Gaussian runs).
     """
     X = np.where(observed, matrix, 0.0)
     rank = max(1, min(rank, *X.shape))
     complete = observed.all(axis=0)
-    gapped = np.flatnonzero(~complete)
-    seen = observed[:, gapped]
     if complete.sum() >= max(3 * rank, 30):
         # Enough complete frames: their subspace is pure evidence. Re-estimating it from
         # filled frames would let surplus directions fit the fill itself.
-        X[:, gapped] = _projected(X[:, gapped], seen, _top_subspace(X[:, complete], rank),
-                                  1e-6)
+        gapped = np.flatnonzero(~complete)
+        X[:, gapped] = _projected(X[:, gapped], observed[:, gapped],
+                                  _top_subspace(X[:, complete], rank), 1e-6)
         return X
+    # Alternating least squares: with so few complete frames, nearly every frame is
+    # projected anyway, and on the whole array (a gather and a scatter of nearly all of
+    # it cost 1 s more per call on 300 markers × 10,000 frames).
     X = linear_fill(matrix, observed)
     basis = _top_subspace(X, rank)
     for _ in range(rounds):
-        X[:, gapped] = _projected(X[:, gapped], seen, basis, ridge)
+        X = _projected(X, observed, basis, ridge)
         basis = _top_subspace(X, rank)
     return X
 
