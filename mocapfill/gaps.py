@@ -43,6 +43,15 @@ def missing_runs(observed: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[0::2].tolist(), edges[1::2].tolist()))
 
 
+def gap_frames(starts: np.ndarray, stops: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For runs [starts[i], stops[i]): every frame of every run and the run it is in,
+    run after run (vectorised form of a loop over ``range(a, b)`` per run)."""
+    lengths = stops - starts
+    run = np.repeat(np.arange(lengths.size), lengths)
+    position = np.arange(lengths.sum()) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+    return run, starts[run] + position
+
+
 def find_gaps(motion: Motion) -> list[Gap]:
     """Every gap of every marker, in marker order then time order."""
     return [Gap(j, motion.labels[j], start, stop, motion.n_frames)

@@ -17,7 +17,7 @@ import numpy as np
 
 from ._blas import single_threaded
 from .errors import NothingToRepair, ParameterError, SolverError, named
-from .gaps import Gap, find_gaps, missing_runs
+from .gaps import Gap, find_gaps, gap_frames, missing_runs
 from .motion import Motion, finite_samples, label_matches
 from .scaling import UnitScale
 from .solvers import get_method, option_names
@@ -575,13 +575,19 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
             _fill_ends(filled[:, gap.marker, :], motion.observed[:, gap.marker], gap,
                        options.ends)
     jumping = _jumping(filled, motion, [outcomes[i].gap for i in to_check], options)
+    kept = []
     for index, jumps in zip(to_check, jumping):
-        gap = outcomes[index].gap
         if jumps:
-            outcomes[index] = GapOutcome(gap, REJECTED_JUMP, options.method)
-            continue
-        accepted[gap.start:gap.stop, gap.marker] = True
-        new_observed[gap.start:gap.stop, gap.marker] = True
+            outcomes[index] = GapOutcome(outcomes[index].gap, REJECTED_JUMP, options.method)
+        else:
+            kept.append(outcomes[index].gap)
+    # Every accepted gap's samples at once (scattered loss: tens of thousands of gaps,
+    # a slice assignment each took 0.1 s).
+    if kept:
+        marker, start, stop = np.array([(g.marker, g.start, g.stop) for g in kept]).T
+        run, frames = gap_frames(start, stop)
+        accepted[frames, marker[run]] = True
+        new_observed |= accepted
     # Sacred: observed samples come from the input, bit for bit; samples not filled keep
     # the input's values too.
     np.copyto(positions, motion.positions, where=~accepted[:, :, None])

@@ -54,3 +54,12 @@ def test_simulation_is_reproducible_with_a_seed_and_keeps_existing_gaps():
 def test_absurd_simulation_parameters_are_rejected(kwargs):
     with pytest.raises(ParameterError):
         simulate_gaps(smooth_clip(100, 5), **kwargs)
+
+
+def test_gap_frames_lists_every_frame_of_every_run_in_order():
+    from mocapfill.gaps import gap_frames
+
+    starts, stops = np.array([3, 10, 10, 40]), np.array([5, 11, 14, 40])   # one empty run
+    run, frames = gap_frames(starts, stops)
+    expected = [(i, f) for i, (a, b) in enumerate(zip(starts, stops)) for f in range(a, b)]
+    assert list(zip(run.tolist(), frames.tolist())) == expected

@@ -41,7 +41,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..gaps import missing_runs
+from ..gaps import gap_frames, missing_runs
 from ._linalg import linear_fill, pair_distances, simplex_least_squares
 from ._threads import run_all
 
@@ -93,15 +93,6 @@ def ramp(values_before: np.ndarray, values_after: np.ndarray, length: int) -> np
     """(k, length) linear ramp from the offset just before a gap to the one just after."""
     s = np.arange(1, length + 1) / (length + 1)
     return np.outer(values_before, 1 - s) + np.outer(values_after, s)
-
-
-def gap_frames(starts: np.ndarray, stops: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For runs [starts[i], stops[i]): every frame of every run and the run it is in,
-    run after run (vectorised form of a loop over ``range(a, b)`` per run)."""
-    lengths = stops - starts
-    run = np.repeat(np.arange(lengths.size), lengths)
-    position = np.arange(lengths.sum()) - np.repeat(np.cumsum(lengths) - lengths, lengths)
-    return run, starts[run] + position
 
 
 def join_ends(fill: np.ndarray, matrix: np.ndarray, observed: np.ndarray,
