@@ -224,24 +224,34 @@ def _taking(jobs: Sequence[Callable[[], T]], ticket, done: dict[int, T]
 
 def _child(jobs: Sequence[Callable[[], T]], ticket, threads: int, sender, parent: int
            ) -> None:
-    """The body of :func:`_run_apart`'s child: run the jobs it takes, send ("ok", {index:
-    result}) or ("error", exception).
+    """The body of :func:`_run_apart`'s child: run the jobs it takes and answer ("ok",
+    {index: result}) or ("error", exception) (:func:`_answer`)."""
+    done: dict[int, T] = {}
+
+    def take_all() -> dict[int, T]:
+        run_all([_taking(jobs, ticket, done)] * threads, threads)
+        return done
+
+    _answer(take_all, sender, parent)
+
+
+def _answer(compute: Callable[[], T], sender, parent: int) -> None:
+    """In a forked child: send ("ok", compute()) or ("error", exception) to the parent.
 
     Ctrl-C is left to the parent, which ends the child on its way out (SIGTERM, whose
     default action is restored: a handler the program installed would keep the child
     alive); the child also ends when the parent dies (Linux's parent-death signal),
     rather than compute on for no one. Nothing escapes: ``multiprocessing`` would print a
-    traceback.
+    traceback. An exception that cannot be pickled is sent as a RuntimeError with its
+    message.
     """
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _die_with(parent)
-    done: dict[int, T] = {}
     try:
-        run_all([_taking(jobs, ticket, done)] * threads, threads)
-        answer = ("ok", done)
+        answer = ("ok", compute())
     except BaseException as exc:  # re-raised in the parent
         try:
             pickle.loads(pickle.dumps(exc))
@@ -441,7 +451,8 @@ def _in_order_forked(count: int, needs: Mapping[int, Sequence[int]],
     that, and it is raised here once the outputs before it have been yielded (children
     still running then are ended). A child that dies without an answer (killed, out of
     memory) has its job run here; where no child can be started, the job runs here too.
-    The children ignore Ctrl-C and end with this process, as :func:`_child` does.
+    The children ignore Ctrl-C and end with this process, as :func:`_run_apart`'s does
+    (:func:`_answer`).
     """
     import multiprocessing
     from multiprocessing.connection import wait
@@ -519,25 +530,11 @@ def _in_order_forked(count: int, needs: Mapping[int, Sequence[int]],
 
 def _job_child(job: Callable[[int, dict[int, L]], tuple[T, L]], k: int, lent: dict[int, L],
                sender, parent: int) -> None:
-    """The body of a child of :func:`_in_order_forked`: send ("ok", job(k, lent)) or
-    ("error", exception), as :func:`_child` does, the job's :func:`run_all` calls on one
-    thread (the other jobs' processes have the other cores)."""
-    import signal
+    """The body of a child of :func:`_in_order_forked`: answer job(k, lent) as
+    :func:`_answer` does, the job's :func:`run_all` calls on one thread (the other jobs'
+    processes have the other cores)."""
+    def compute() -> tuple[T, L]:
+        os.environ[VARIABLE] = "1"
+        return job(k, lent)
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    _die_with(parent)
-    os.environ[VARIABLE] = "1"
-    try:
-        answer = ("ok", job(k, lent))
-    except BaseException as exc:  # re-raised in the parent
-        try:
-            pickle.loads(pickle.dumps(exc))
-        except Exception:
-            exc = RuntimeError(f"{type(exc).__name__}: {exc}")
-        answer = ("error", exc)
-    try:
-        sender.send(answer)
-        sender.close()
-    except OSError:                             # the parent is gone
-        pass
+    _answer(compute, sender, parent)
