@@ -14,7 +14,8 @@
 - :func:`spd_inverse`, :func:`times_spd_inverse` — the inverse of a symmetric positive
   definite matrix by Cholesky, and the product with it.
 - :func:`pair_distances` — mean and spread over time of the distance between every two
-  markers, on the frames where both are observed.
+  markers, on the frames where both are observed (:func:`distance_rows`: from some
+  markers to some others; :func:`nearest_markers`: each marker's nearest).
 - :func:`simplex_least_squares` — the convex weights minimising a Gram matrix's quadratic
   form, for the blend (without ``scipy.optimize``, whose import cost 0.1 s).
 
@@ -300,22 +301,59 @@ def pair_distances(points: np.ndarray, seen: np.ndarray, *, spread: bool = True
     coordinates held separately, with no (frames × markers × 3) temporaries.
     """
     k = points.shape[1]
-    coords = [np.where(seen, points[:, :, c], 0.0) for c in range(3)]       # (n, k) each
     count = np.zeros((k, k), dtype=np.int64)
     mean = np.zeros((k, k))
     std = np.zeros((k, k)) if spread else None
-    for j in range(k):
-        dist = np.sqrt(sum((x[:, j:] - x[:, j:j + 1]) ** 2 for x in coords))   # (n, k − j)
-        both = seen[:, j:j + 1] & seen[:, j:]
-        n_both = both.sum(axis=0)
-        safe = np.maximum(n_both, 1)
-        m = np.where(both, dist, 0.0).sum(axis=0) / safe
+    rows = distance_rows(points, seen, [(j, slice(j, None)) for j in range(k)], spread)
+    for j, (n_both, m, s) in enumerate(rows):
         count[j, j:] = count[j:, j] = n_both
         mean[j, j:] = mean[j:, j] = m
         if spread:
-            s = np.sqrt(np.where(both, (dist - m) ** 2, 0.0).sum(axis=0) / safe)
             std[j, j:] = std[j:, j] = s
     return count, mean, std
+
+
+def distance_rows(points: np.ndarray, seen: np.ndarray, rows: list, spread: bool):
+    """For each (j, others) of ``rows`` (others: a slice or an index array of markers),
+    the frames seeing both, mean and std (None unless ``spread``) of the distance from
+    marker j to each of ``others``, as :func:`pair_distances` defines them.
+
+    A generator, so that one row's temporaries are still held while the next is
+    computed: freed at every return of a function, the same loop took twice as long
+    (85_12: 75 against 36 ms), the allocator handing the pages back and faulting them in
+    again for every row.
+    """
+    coords = [np.where(seen, points[:, :, c], 0.0) for c in range(3)]      # (n, k) each
+    for j, others in rows:
+        dist = np.sqrt(sum((x[:, others] - x[:, j:j + 1]) ** 2 for x in coords))
+        both = seen[:, j:j + 1] & seen[:, others]
+        n_both = both.sum(axis=0)
+        safe = np.maximum(n_both, 1)
+        m = np.where(both, dist, 0.0).sum(axis=0) / safe
+        s = (np.sqrt(np.where(both, (dist - m) ** 2, 0.0).sum(axis=0) / safe) if spread
+             else None)
+        yield n_both, m, s
+
+
+def nearest_markers(points: np.ndarray, seen: np.ndarray, count: int) -> np.ndarray:
+    """(markers, count): each marker's ``count`` nearest other markers, nearest first, by
+    the RMS distance over the frames where both are observed (markers never observed
+    together come last). From matrix products (sums of squares and of cross products
+    over the frames), not from the distances frame by frame: for 300 markers over 10,000
+    frames, 45,000 pairs. ``points`` (frames, markers, 3), ``seen`` (frames, markers)."""
+    k = points.shape[1]
+    S = seen.astype(np.float64)
+    total = np.zeros((k, k))
+    for c in range(3):
+        x = np.where(seen, points[:, :, c], 0.0)
+        squares = (x * x).T @ S            # Σ x_i² over the frames seeing both i and j
+        total += squares + squares.T - 2.0 * (x.T @ x)
+    both = S.T @ S
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rms = np.sqrt(np.maximum(total, 0.0) / both)
+    rms[both == 0] = np.inf
+    np.fill_diagonal(rms, np.inf)
+    return np.argsort(rms, axis=1, kind="stable")[:, :count]
 
 
 def simplex_least_squares(gram: np.ndarray, *, max_iter: int | None = None) -> np.ndarray:

@@ -156,3 +156,47 @@ def test_visibility_patterns_are_those_of_numpy_unique_in_its_order(markers):
     patterns, groups = pca._patterns(visible)
     np.testing.assert_array_equal(patterns, expected)
     np.testing.assert_array_equal(groups, np.asarray(inverse).ravel())
+
+
+def test_nearest_markers_rank_by_rms_distance_over_the_frames_seeing_both():
+    from mocapfill.solvers._linalg import nearest_markers
+
+    rng = np.random.default_rng(4)
+    n, k = 200, 6
+    # Markers along x at 0, 1, 3, 7, 12, 18 (plus a common motion and noise).
+    spots = np.array([0.0, 1.0, 3.0, 7.0, 12.0, 18.0])
+    points = rng.normal(size=(n, 1, 3)) * 5 + rng.normal(scale=0.01, size=(n, k, 3))
+    points[:, :, 0] += spots
+    seen = rng.random((n, k)) > 0.2
+    seen[:, 5] = seen[:, 5] & ~seen[:, 4]        # 4 and 5 never seen together
+    points[~seen] = np.nan
+    near = nearest_markers(points, seen, 3)
+    assert near.shape == (6, 3)
+    assert near[0].tolist() == [1, 2, 3] and near[2].tolist() == [1, 0, 3]
+    assert near[4].tolist() == [3, 2, 1]               # 5 is never beside it
+    assert near[5].tolist() == [3, 2, 1]
+
+
+def test_distance_spread_of_many_markers_measures_each_row_to_its_nearest():
+    from mocapfill.solvers._linalg import nearest_markers, pair_distances
+    from mocapfill.solvers.gapwise import distance_spread
+
+    rng = np.random.default_rng(5)
+    n, k = 150, 9
+    points = rng.normal(size=(n, k, 3)) + rng.normal(size=(1, k, 3)) * 20
+    seen = rng.random((n, k)) > 0.1
+    points[~seen] = np.nan
+    count, _, std = pair_distances(points, seen)
+    full = np.where(count >= 10, std, np.inf)
+    np.fill_diagonal(full, np.inf)
+    # Few enough markers: every pair, as before.
+    np.testing.assert_array_equal(distance_spread(points, seen, candidates=8), full)
+    # More: only the rows asked for, each to its 4 nearest, with the same values.
+    near = nearest_markers(points, seen, 4)
+    spread = distance_spread(points, seen, rows=[2, 7], candidates=4)
+    for j in range(k):
+        measured = np.isfinite(spread[j])
+        assert measured.sum() == (4 if j in (2, 7) else 0)
+        if j in (2, 7):
+            assert set(np.flatnonzero(measured)) == set(near[j])
+            np.testing.assert_allclose(spread[j, near[j]], full[j, near[j]], rtol=1e-12)
