@@ -16,10 +16,13 @@ from pathlib import Path
 import click
 
 from ._blas import one_thread_by_default
+from ._memory import tune_heap
 
 # One BLAS thread unless the user chose otherwise (set OPENBLAS_NUM_THREADS etc. to
-# override). This runs before numpy is first imported by any command.
+# override), and the C heap's thresholds for numpy's many arrays of a few MB (set glibc's
+# MALLOC_* variables to override). This runs before numpy is first imported by any command.
 one_thread_by_default()
+tune_heap()
 
 EXIT_CHECK_FAILED = 1
 EXIT_USAGE = 2

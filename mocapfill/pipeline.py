@@ -16,12 +16,13 @@ from typing import Callable
 import numpy as np
 
 from ._blas import single_threaded
+from ._memory import release_memory
 from .errors import NothingToRepair, ParameterError, SolverError, named
 from .gaps import Gap, find_gaps, gap_frames, missing_runs
 from .motion import Motion, finite_samples, label_matches
 from .scaling import UnitScale
 from .solvers import get_method, option_names
-from .solvers._threads import in_order, release_memory, thread_count
+from .solvers._threads import in_order, thread_count
 
 ENDS = ("leave", "hold", "extrapolate")
 SPACES = ("positions", "channels")

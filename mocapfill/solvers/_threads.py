@@ -21,7 +21,6 @@ already fill every core with one file each.
 """
 from __future__ import annotations
 
-import functools
 import os
 import pickle
 import queue
@@ -32,6 +31,7 @@ from typing import Callable, TypeVar
 
 from .._blas import single_threaded
 from .._blas import threads_now as blas_threads_now
+from .._memory import release_memory
 from ..errors import ParameterError
 
 T = TypeVar("T")
@@ -62,30 +62,6 @@ def thread_count() -> int:
     if count < 1:
         raise ParameterError(f"{VARIABLE} must be a positive integer, got {value!r}")
     return count
-
-
-def release_memory() -> None:
-    """Hand the C heap's free pages back to the system (glibc's ``malloc_trim``).
-
-    Each thread allocates from its own malloc arena, and freed arrays of a few MB stayed
-    there: on a long clip solved in windows the resident memory crept up window after
-    window (a 40,000-frame clip: 440 → 760 MB). A no-op where the C library has no
-    ``malloc_trim`` (not glibc).
-    """
-    trim = _malloc_trim()
-    if trim is not None:
-        trim(0)
-
-
-@functools.lru_cache(maxsize=1)
-def _malloc_trim():
-    import ctypes
-
-    try:
-        # The process's own symbols: the C library on Linux, without searching for it.
-        return ctypes.CDLL(None).malloc_trim
-    except (OSError, AttributeError, TypeError):   # no malloc_trim; Windows has no CDLL(None)
-        return None
 
 
 def run_all(jobs: Sequence[Callable[[], T]], threads: int | None = None, *,
