@@ -323,7 +323,7 @@ def distance_rows(points: np.ndarray, seen: np.ndarray, rows: list, spread: bool
     (85_12: 75 against 36 ms), the allocator handing the pages back and faulting them in
     again for every row.
     """
-    coords = [np.where(seen, points[:, :, c], 0.0) for c in range(3)]      # (n, k) each
+    coords = _seen_coordinates(points, seen)
     for j, others in rows:
         dist = np.sqrt(sum((x[:, others] - x[:, j:j + 1]) ** 2 for x in coords))
         both = seen[:, j:j + 1] & seen[:, others]
@@ -344,8 +344,7 @@ def nearest_markers(points: np.ndarray, seen: np.ndarray, count: int) -> np.ndar
     k = points.shape[1]
     S = seen.astype(np.float64)
     total = np.zeros((k, k))
-    for c in range(3):
-        x = np.where(seen, points[:, :, c], 0.0)
+    for x in _seen_coordinates(points, seen):
         squares = (x * x).T @ S            # Σ x_i² over the frames seeing both i and j
         total += squares + squares.T - 2.0 * (x.T @ x)
     both = S.T @ S
@@ -354,6 +353,12 @@ def nearest_markers(points: np.ndarray, seen: np.ndarray, count: int) -> np.ndar
     rms[both == 0] = np.inf
     np.fill_diagonal(rms, np.inf)
     return np.argsort(rms, axis=1, kind="stable")[:, :count]
+
+
+def _seen_coordinates(points: np.ndarray, seen: np.ndarray) -> list[np.ndarray]:
+    """The x, y and z of ``points`` (frames, markers, 3), each (frames, markers), 0 where
+    not ``seen``."""
+    return [np.where(seen, points[:, :, c], 0.0) for c in range(3)]
 
 
 def simplex_least_squares(gram: np.ndarray, *, max_iter: int | None = None) -> np.ndarray:

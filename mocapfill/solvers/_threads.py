@@ -345,12 +345,6 @@ def in_order(count: int, needs: Mapping[int, Sequence[int]],
     cond = threading.Condition()
     pool = _Pool(thread_count() if threads is None else threads)
 
-    def startable() -> int | None:
-        for k in range(state["next"], min(count, state["next"] + ahead)):
-            if k not in started and all(j in lends for j in needs.get(k, ())):
-                return k
-        return None
-
     def coordinate() -> None:
         _local.pool = pool
         while True:
@@ -358,7 +352,7 @@ def in_order(count: int, needs: Mapping[int, Sequence[int]],
                 while True:
                     if state["stop"] or errors or len(started) == count:
                         return
-                    k = startable()
+                    k = _startable(state["next"], count, ahead, needs, started, lends)
                     if k is not None:
                         break
                     cond.wait()
@@ -409,6 +403,16 @@ def in_order(count: int, needs: Mapping[int, Sequence[int]],
             raise errors[0]
 
 
+def _startable(following: int, count: int, ahead: int, needs: Mapping[int, Sequence[int]],
+               started: set[int], lends: Mapping[int, object]) -> int | None:
+    """:func:`in_order`'s next job to start: the lowest index not started, less than
+    ``ahead`` past the next output due (``following``), whose needed lends are all in."""
+    for k in range(following, min(count, following + ahead)):
+        if k not in started and all(j in lends for j in needs.get(k, ())):
+            return k
+    return None
+
+
 def _in_order_forked(count: int, needs: Mapping[int, Sequence[int]],
                      job: Callable[[int, dict[int, L]], tuple[T, L]], at_once: int,
                      ahead: int) -> Iterator[T]:
@@ -441,19 +445,13 @@ def _in_order_forked(count: int, needs: Mapping[int, Sequence[int]],
     error: tuple[int, BaseException] | None = None
     following = 0                       # the next output to yield
 
-    def startable() -> int | None:
-        for k in range(following, min(count, following + ahead)):
-            if k not in started and all(j in lends for j in needs.get(k, ())):
-                return k
-        return None
-
     def finished(k: int, result: tuple[T, L]) -> None:
         outputs[k], lends[k] = result
 
     try:
         while following < count:
             while error is None and len(running) < at_once:
-                k = startable()
+                k = _startable(following, count, ahead, needs, started, lends)
                 if k is None:
                     break
                 started.add(k)

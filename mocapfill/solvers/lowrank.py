@@ -46,12 +46,12 @@ def low_rank_start(matrix: np.ndarray, observed: np.ndarray, *, rank: int,
     frames; the projection of them all was 0.035 s of each of the blend's TrNN and
     Gaussian runs).
     """
-    X = np.where(observed, matrix, 0.0)
-    rank = max(1, min(rank, *X.shape))
+    rank = max(1, min(rank, *matrix.shape))
     complete = observed.all(axis=0)
     if complete.sum() >= max(3 * rank, 30):
         # Enough complete frames: their subspace is pure evidence. Re-estimating it from
         # filled frames would let surplus directions fit the fill itself.
+        X = np.where(observed, matrix, 0.0)
         gapped = np.flatnonzero(~complete)
         X[:, gapped] = _projected(X[:, gapped], observed[:, gapped],
                                   _top_subspace(X[:, complete], rank), 1e-6)
