@@ -800,7 +800,8 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         hidden and the candidates run once, on the real mask. Without it the clip
         validates itself, which runs every candidate twice.
     costly
-        Names of the slowest candidates, whose runs start first (scheduling only).
+        Names of the slowest candidates, whose runs start first, in this order, before
+        the others (scheduling only: the fill does not depend on it).
     optional
         Names of candidates not run on the real mask when the weights give them no weight
         on any gap (on a clip validating itself, their runs there wait for the

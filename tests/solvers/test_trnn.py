@@ -418,3 +418,22 @@ def test_the_default_blends_tsmc_on_scattered_loss_only(monkeypatch):
         assert ("tsmc" in calls[-1][0]) == offered
         np.testing.assert_array_equal(filled[observed], matrix[observed])
         assert np.isfinite(filled).all()
+
+
+def test_the_default_starts_its_costly_candidates_first(monkeypatch):
+    from mocapfill.solvers.trnn import RUN_ORDER
+
+    calls = _spied_blend(monkeypatch)
+    matrix = _sines(1)
+    offered = set()
+    for observed in (np.ones_like(matrix, dtype=bool), scattered(1, *matrix.shape, 0.2)):
+        observed[3:6, 100:130] = False
+        complete(matrix, observed)
+        names, options = calls[-1]
+        offered |= set(names)
+        assert options["costly"] == RUN_ORDER
+    # A misspelt name would be passed over in silence (blend starts only the candidates
+    # it has): every name is one the default offers, and the cheap splines come last.
+    assert set(RUN_ORDER) <= offered
+    assert RUN_ORDER[:2] == ("trnn", "gaussian")
+    assert not {"spline", "quintic", "septic"} & set(RUN_ORDER)
