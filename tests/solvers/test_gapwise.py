@@ -229,6 +229,26 @@ def test_several_gaps_bagged_together_are_each_bagged_alone_in_turn():
     assert _bagged_many([], np.random.default_rng(2)) == []
 
 
+def test_the_bootstrap_resamples_are_the_generators_draws_round_by_round(monkeypatch):
+    # All of a list's rounds are drawn in one call; the resamples (and every later draw)
+    # must be those of one call per round, as the measured figures were made with.
+    from mocapfill.solvers import gapwise
+
+    seen = []
+    original = gapwise._cross_validated_stacks
+    monkeypatch.setattr(gapwise, "_cross_validated_stacks",
+                        lambda stacks, orders: seen.append(orders) or original(stacks, orders))
+    rng = np.random.default_rng(5)
+    lists = [[evidence(rng.normal(size=(4, 3)))] * size for size in (7, 1, 30, 2)]
+    rng, reference = np.random.default_rng(9), np.random.default_rng(9)
+    rng.integers(0, 3, 3), reference.integers(0, 3, 3)   # an odd start of the stream
+    _bagged_many(lists, rng, rounds=5)
+    for orders, blocks in zip(seen[0], lists):
+        expected = [reference.integers(0, len(blocks), len(blocks)) for _ in range(5)]
+        np.testing.assert_array_equal(orders, expected)
+    assert rng.integers(0, 1 << 40) == reference.integers(0, 1 << 40)
+
+
 def test_join_ends_adds_each_gaps_ramp_for_marker_and_single_row_groups():
     # All gaps at once must be the per-gap ramp of the offsets at the samples just outside.
     rng = np.random.default_rng(3)
