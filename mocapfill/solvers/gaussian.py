@@ -33,6 +33,7 @@ blends both.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -60,6 +61,15 @@ class _Patterns:
     which: np.ndarray       # (f,) index of each frame's missing set in ``rows``
     rows: np.ndarray        # (k, s) row indices of each distinct missing set
     counts: np.ndarray      # (k,) frames per missing set
+    width: int              # m, the rows of the mask
+
+    @cached_property
+    def blocks(self) -> np.ndarray:
+        """(k, s, s) flat indices i·m + j of each missing set's block in an m × m matrix,
+        made at the first E-step and kept for the others: gathering the blocks and
+        scattering their inverses through them took a third of the time of the inverses
+        themselves (a real clip with 465 missing sets of 11 sizes)."""
+        return self.rows[:, :, None] * self.width + self.rows[:, None, :]
 
 
 def _missing_sets(missing: np.ndarray) -> list[_Patterns]:
@@ -78,7 +88,7 @@ def _missing_sets(missing: np.ndarray) -> list[_Patterns]:
         _, first, which, counts = np.unique(keys, axis=0, return_index=True,
                                             return_inverse=True, return_counts=True)
         rows = np.nonzero(missing[:, frames[first]].T)[1].reshape(first.size, size)
-        groups.append(_Patterns(frames, which.ravel(), rows, counts))
+        groups.append(_Patterns(frames, which.ravel(), rows, counts, missing.shape[0]))
     return groups
 
 
@@ -91,8 +101,8 @@ def conditional_step(Z: np.ndarray, precision: np.ndarray, sets: list[_Patterns]
     for group in sets:
         r = group.rows
         # Λ_MM⁻¹ of every missing set: the solve and the conditional covariance at once.
-        inverse = np.linalg.inv(precision[r[:, :, None], r[:, None, :]])     # (k, s, s)
-        scatter += np.bincount((r[:, :, None] * m + r[:, None, :]).ravel(),
+        inverse = np.linalg.inv(precision.take(group.blocks))               # (k, s, s)
+        scatter += np.bincount(group.blocks.ravel(),
                                (group.counts[:, None, None] * inverse).ravel(),
                                minlength=m * m).reshape(m, m)
         for lo in range(0, group.frames.size, _CHUNK):
