@@ -915,28 +915,35 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         total = np.sum(gap_weights, axis=0) if gap_weights else np.zeros(len(names))
         base = max(ran, key=lambda i: total[i])
     out = np.where(observed, matrix, fills[base])
-    long_gaps: dict[int, list[int]] = {}    # length -> gaps of MIN_MODEL_GAP frames or more
-    for index, (_, a, b) in enumerate(gapset.gaps):
-        if b - a >= MIN_MODEL_GAP:
-            long_gaps.setdefault(b - a, []).append(index)
-    for length, indices in long_gaps.items():
-        g, a, _ = np.array([gapset.gaps[i] for i in indices]).T
+    # The gaps as one (gaps, 3) array and their weights as one (gaps, k) array: random loss
+    # gives tens of thousands of gaps, and a Python tuple and a weight array each cost
+    # 0.1 s of serial bookkeeping on 85_12 at mr = 0.6 (44,000 gaps).
+    spans = np.array(gapset.gaps, dtype=np.int64).reshape(-1, 3)
+    lengths = spans[:, 2] - spans[:, 1]
+    weight_rows = np.array(gap_weights, dtype=np.float64).reshape(-1, len(names))
+    present = np.bincount(lengths, minlength=MIN_MODEL_GAP)[MIN_MODEL_GAP:]
+    for length in (np.flatnonzero(present) + MIN_MODEL_GAP).tolist():
+        indices = np.flatnonzero(lengths == length)
+        g, a = spans[indices, 0], spans[indices, 1]
         rows = groups[g][:, :, None]                                 # (gaps, rows, 1)
         frames = (a[:, None] + np.arange(length))[:, None, :]        # (gaps, 1, length)
         segments = np.stack([fills[i][rows, frames] for i in ran], axis=1)
-        kept = _without_outliers(np.array([gap_weights[i][ran] for i in indices]), segments)
-        for i, w in zip(indices, kept):
-            gap_weights[i] = np.zeros(len(names))
-            gap_weights[i][ran] = w
+        kept = _without_outliers(weight_rows[np.ix_(indices, ran)], segments)
+        weight_rows[indices] = 0.0
+        weight_rows[np.ix_(indices, ran)] = kept
     # Gaps sharing one weight vector are blended together (random loss gives tens of
-    # thousands of gaps, most of them sharing their length class's weights).
-    shared: dict[bytes, tuple[np.ndarray, list[int]]] = {}
-    for index, w in enumerate(gap_weights):
-        shared.setdefault(w.tobytes(), (w, []))[1].append(index)
-    for w, indices in shared.values():
-        g, a, b = np.array([gapset.gaps[i] for i in indices]).T
+    # thousands of gaps, most of them sharing their length class's weights): the rows
+    # sorted, and each run of equal rows taken at once.
+    order = np.lexsort(weight_rows.T)
+    ordered = weight_rows[order]
+    starts = np.flatnonzero(np.r_[True, (ordered[1:] != ordered[:-1]).any(axis=1)])
+    for lo, hi in zip(starts.tolist(), np.r_[starts[1:], order.size].tolist()):
+        if lo == hi:
+            continue
+        g, a, b = spans[np.sort(order[lo:hi])].T
         run, frames = gap_frames(a, b)
         rows, frames = groups[g][run], frames[:, None]
-        out[rows, frames] = sum(wk * f[rows, frames] for wk, f in zip(w, fills) if wk > 0)
+        out[rows, frames] = sum(wk * f[rows, frames]
+                                for wk, f in zip(ordered[lo], fills) if wk > 0)
     return out, BlendReport(names, weights, len(hidden),
                             validation or Validation(names, errors, own))
