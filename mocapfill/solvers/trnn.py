@@ -319,7 +319,7 @@ WINDOW_PCA_MODELS = 4
 # longest first, as measured on the benchmark's and the shared data's clips, so that
 # neither core is left alone with a long run at the end. The Gaussian EM costs most where
 # occlusions overlap in many patterns: on real clips with hundreds of gaps its validation
-# run (0.3–0.9 s, twice its fill's) came last and ran alone for 0.1–0.5 s.
+# run (0.3–0.9 s, twice its fill's) came last and ran alone for 0.2–0.55 s.
 RUN_ORDER = ("trnn", "gaussian", "tsmc", "pca", "regression", "rigid")
 
 

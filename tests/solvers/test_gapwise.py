@@ -592,3 +592,35 @@ def test_stand_ins_leave_half_of_the_complete_frames(in_this_process):
     train = next(mask for mask in masks if not np.array_equal(mask, observed))
     assert 0 < report.pseudo_gaps < len(placed)     # the floor dropped some
     assert complete // 2 <= train.all(axis=0).sum() < complete
+
+
+def test_each_gap_takes_the_blend_of_its_own_weights_and_end_gaps_the_default(
+        in_this_process):
+    # Two length classes whose evidence favours different candidates: every gap of a class
+    # must take its class's candidate (the gaps are grouped by equal weights before the
+    # blend is written), and a clip whose only gaps touch its ends takes the default's fill.
+    from mocapfill.solvers.gapwise import Validation, blend
+
+    t = np.arange(600) / 60.0
+    truth = np.vstack([np.sin(1.1 * (j + 1) * t + j) for j in range(18)])
+    short, long = 0, 4                                  # classes of 1 and 9–16 frames
+    errors = np.array([[1.0, 0.0], [0.0, 1.0]])         # "one" errs, "two" does not; swapped
+    validation = Validation(("one", "two"),
+                            {short: [evidence(errors[[0]].repeat(40, axis=0))] * 40,
+                             long: [evidence(errors[[1]].repeat(40, axis=0))] * 40}, {})
+    candidates = {"one": lambda a, o: np.full_like(truth, 1.0),
+                  "two": lambda a, o: np.full_like(truth, 2.0)}
+    gaps = [(0, 100, 101), (1, 200, 212), (2, 300, 301), (3, 400, 410), (5, 50, 51)]
+    observed = _mask(6, 600, gaps)
+    filled, _ = blend(np.where(observed, truth, 0.0), observed, candidates, default="one",
+                      validation=validation)
+    for marker, a, b in gaps:
+        expected = 2.0 if b - a == 1 else 1.0           # the short class trusts "two"
+        assert (filled[3 * marker:3 * marker + 3, a:b] == expected).all()
+    np.testing.assert_array_equal(filled[observed], truth[observed])
+
+    ends = _mask(6, 600, [(0, 0, 30), (4, 570, 600)])
+    filled, _ = blend(np.where(ends, truth, 0.0), ends, candidates, default="two",
+                      validation=validation)
+    assert (filled[~ends] == 2.0).all()
+    np.testing.assert_array_equal(filled[ends], truth[ends])
