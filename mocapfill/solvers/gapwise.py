@@ -37,7 +37,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import partial
+from functools import cached_property, partial
 from typing import Callable
 
 import numpy as np
@@ -67,6 +67,17 @@ class GapSet:
 
     groups: np.ndarray          # (g, k) row indices of each group (k = 3 for markers)
     gaps: list[tuple[int, int, int]]
+
+    @cached_property
+    def spans(self) -> np.ndarray:
+        """The gaps as one (gaps, 3) array of (group, start, stop), made once for every
+        step of the blend that reads them all (random loss: tens of thousands)."""
+        return np.array(self.gaps, dtype=np.int64).reshape(-1, 3)
+
+    @cached_property
+    def lengths(self) -> np.ndarray:
+        """(gaps,) the length of each gap in frames."""
+        return self.spans[:, 2] - self.spans[:, 1]
 
 
 def row_groups(observed: np.ndarray) -> np.ndarray:
@@ -114,7 +125,7 @@ def join_ends(fill: np.ndarray, matrix: np.ndarray, observed: np.ndarray,
     out = np.where(observed, matrix, fill)
     if not gapset.gaps:
         return out
-    g, a, b = np.array(gapset.gaps).T
+    g, a, b = gapset.spans.T
     rows = gapset.groups[g]                                          # (gaps, k)
     before = matrix[rows, (a - 1)[:, None]] - fill[rows, (a - 1)[:, None]]
     after = matrix[rows, b[:, None]] - fill[rows, b[:, None]]
@@ -417,7 +428,7 @@ def pseudo_gaps(observed: np.ndarray, gapset: GapSet, rng: np.random.Generator, 
     chosen = []
     # Every real gap gets up to ``repeats`` stand-ins, round by round; within a round the
     # gaps of rare length classes go first so the budget does not all go to short gaps.
-    lengths = np.array([b - a for _, a, b in gapset.gaps], dtype=np.int64)
+    lengths = gapset.lengths
     classes = length_classes(lengths)
     frequency = np.bincount(classes)[classes] if classes.size else classes
     rounds = []
@@ -724,7 +735,7 @@ def _gap_weights(gapset: GapSet, weights: dict[int, np.ndarray],
     gap_weights = []
     # Random loss gives tens of thousands of gaps in a handful of length classes: each
     # class's weights are looked up once and shared by its gaps (the same array).
-    lengths = np.array([b - a for _, a, b in gapset.gaps], dtype=np.int64)
+    lengths = gapset.lengths
     of_class: dict[int, np.ndarray] = {}
     # The gaps judged on their own stand-ins are bagged side by side, in gap order.
     judged = [index for index in range(len(gapset.gaps))
@@ -918,8 +929,7 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     # The gaps as one (gaps, 3) array and their weights as one (gaps, k) array, not a
     # Python loop over them: random loss gives tens of thousands of gaps (85_12 at
     # mr = 0.6: 44,000).
-    spans = np.array(gapset.gaps, dtype=np.int64).reshape(-1, 3)
-    lengths = spans[:, 2] - spans[:, 1]
+    spans, lengths = gapset.spans, gapset.lengths
     weight_rows = np.array(gap_weights, dtype=np.float64).reshape(-1, len(names))
     present = np.bincount(lengths, minlength=MIN_MODEL_GAP)[MIN_MODEL_GAP:]
     for length in (np.flatnonzero(present) + MIN_MODEL_GAP).tolist():
