@@ -505,19 +505,43 @@ def _run_here(jobs: Sequence[FileJob], done: Callable[[FileRecord], None]) -> No
         done(repair_file(job))
 
 
-def _stop_pool(executor) -> None:
+def _stop_pool(executor, grace: float = 5.0) -> None:
     """Cancel what has not started, stop the workers (SIGTERM, then SIGKILL), wait."""
     # Taken before shutdown(), which forgets them. (Python 3.14 has terminate_workers().)
     processes = list((getattr(executor, "_processes", None) or {}).values())
+    manager = getattr(executor, "_executor_manager_thread", None)
     executor.shutdown(wait=False, cancel_futures=True)
     for process in processes:
-        if process.is_alive():
-            process.terminate()
+        process.terminate()
+    # A worker's death is read from its sentinel, not from Process.join: the pool's
+    # manager thread joins the same processes, and whichever thread's waitpid comes
+    # second gets ECHILD, which join() takes for "still running" until the first thread
+    # records the exit code — on a loaded machine the worker then showed as alive after
+    # this function returned.
+    alive = {process.sentinel: process for process in processes}
+    _drop_dead(alive, grace)
+    for process in alive.values():
+        process.kill()
+    _drop_dead(alive, None)
+    # The manager thread has seen them die (or will, now) and records their exit codes.
+    if manager is not None:
+        manager.join(timeout=grace)
     for process in processes:
-        process.join(timeout=5)
-        if process.is_alive():
-            process.kill()
-            process.join()
+        process.join(timeout=grace)
+
+
+def _drop_dead(alive: dict, timeout: float | None) -> None:
+    """Remove from ``alive`` (sentinel → process) the processes that end within ``timeout``."""
+    from multiprocessing.connection import wait
+
+    deadline = None if timeout is None else time.monotonic() + timeout
+    while alive:
+        left = None if deadline is None else max(deadline - time.monotonic(), 0.0)
+        ready = wait(list(alive), left)
+        if not ready:
+            return
+        for sentinel in ready:
+            del alive[sentinel]
 
 
 def _run_pool(jobs: Sequence[FileJob], workers: int,
