@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import glob
 import os
+import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
 from contextlib import contextmanager
@@ -481,8 +482,17 @@ def _exit_on_terminate(signum, frame) -> None:
     # pool's worker loop catches it as the job's exception and would go on to the next
     # queued file (which was then written after Ctrl-C, unreported): repair_file exits
     # before starting another.
+    # The exit is raised wherever the worker happens to be; what it leaves half-built (a
+    # ZipFile in np.savez, an import's module lock) fails again in its __del__ or weakref
+    # callback, and Python prints each as "Exception ignored in ..." with a traceback, on
+    # the terminal of the user who pressed Ctrl-C. Those are silenced from here on.
+    sys.unraisablehook = _ignore
     _TERMINATING.append(signum)
     raise SystemExit(128 + signum)
+
+
+def _ignore(*_args) -> None:
+    return None
 
 
 @contextmanager
