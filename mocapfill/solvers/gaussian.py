@@ -71,6 +71,19 @@ class _Patterns:
         themselves (a real clip with 465 missing sets of 11 sizes)."""
         return self.rows[:, :, None] * self.width + self.rows[:, None, :]
 
+    @cached_property
+    def union(self) -> tuple[np.ndarray | None, np.ndarray]:
+        """The rows missing in some of these frames (None when that is most rows) and each
+        set's rows as positions in it: the E-step forms (Λz)_M from those rows of Λ only.
+        Real occlusions leave a few markers missing in many combinations (11 sizes of
+        missing set, each within 27–39 of 159 rows, on a squat clip); dense random
+        loss misses nearly every row in some frame, where the gather would cost more than
+        the rows it leaves out."""
+        union = np.flatnonzero(np.bincount(self.rows.ravel(), minlength=self.width))
+        if union.size > 3 * self.width // 4:
+            return None, self.rows
+        return union, np.searchsorted(union, self.rows)
+
 
 def _missing_sets(missing: np.ndarray) -> list[_Patterns]:
     """Incomplete frames grouped by the size of their missing set, then by the set.
@@ -99,7 +112,8 @@ def conditional_step(Z: np.ndarray, precision: np.ndarray, sets: list[_Patterns]
     m = Z.shape[0]
     scatter = np.zeros((m, m))
     for group in sets:
-        r = group.rows
+        union, local = group.union
+        rows_of_precision = precision if union is None else precision[union]
         # Λ_MM⁻¹ of every missing set: the solve and the conditional covariance at once.
         inverse = np.linalg.inv(precision.take(group.blocks))               # (k, s, s)
         scatter += np.bincount(group.blocks.ravel(),
@@ -108,9 +122,9 @@ def conditional_step(Z: np.ndarray, precision: np.ndarray, sets: list[_Patterns]
         for lo in range(0, group.frames.size, _CHUNK):
             f = group.frames[lo:lo + _CHUNK]
             which = group.which[lo:lo + _CHUNK]
-            rows = r[which]                                                  # (f, s)
-            g = np.take_along_axis((precision @ Z[:, f]).T, rows, axis=1)    # (f, s) of Λz
-            Z[rows.T, f] -= np.einsum("fij,fj->if", inverse[which], g)
+            product = rows_of_precision @ Z[:, f]
+            g = np.take_along_axis(product.T, local[which], axis=1)        # (f, s) of Λz
+            Z[group.rows[which].T, f] -= np.einsum("fij,fj->if", inverse[which], g)
     return scatter
 
 
@@ -158,10 +172,13 @@ def fit_normal(matrix: np.ndarray, observed: np.ndarray, *, start: np.ndarray,
     fixed_sum = fixed.sum(axis=1, keepdims=True)
     fixed_scatter = fixed @ fixed.T
     del fixed
-    data = matrix[:, incomplete]
-    seen = observed[:, incomplete]
-    missing = ~seen
+    missing = ~observed[:, incomplete]
     sets = _missing_sets(missing)
+    # The missing entries' flat indices and rows: the E-step reads and writes those
+    # entries only (boolean masks over every incomplete frame took 0.9 ms of an E-step's
+    # 8–10 on a real clip).
+    gone = np.flatnonzero(missing)
+    gone_rows = gone // missing.shape[1]
 
     def m_step(FI: np.ndarray, scatter: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mean and ridged covariance of the filled frames (conditional scatter added)."""
@@ -176,11 +193,12 @@ def fit_normal(matrix: np.ndarray, observed: np.ndarray, *, start: np.ndarray,
         """The frames filled under N(mean, cov), their conditional scatter, and how far
         the filled entries moved from ``FI``."""
         ZI = FI - mean
-        before = ZI[missing]
+        before = ZI.take(gone)
         scatter = conditional_step(ZI, spd_inverse(cov), sets)
-        filled = ZI + mean
-        np.copyto(filled, data, where=seen)         # exact data, not x − μ + μ
-        return filled, scatter, float(np.abs(ZI[missing] - before).max())
+        after = ZI.take(gone)
+        filled = FI.copy()              # the data exactly where seen, not x − μ + μ
+        filled.flat[gone] = after + mean[gone_rows, 0]
+        return filled, scatter, float(np.abs(after - before).max())
 
     FI = F[:, incomplete]
     mean, cov = m_step(FI, np.zeros((m, m)))

@@ -15,12 +15,15 @@ def random_spd(seed: int, m: int) -> np.ndarray:
     return A @ A.T + 0.5 * np.eye(m)
 
 
-def test_conditional_step_is_the_textbook_conditional_expectation():
+@pytest.mark.parametrize("can_miss", [range(9), [1, 2, 6, 7]], ids=["any row", "four rows"])
+def test_conditional_step_is_the_textbook_conditional_expectation(can_miss):
+    # Where few rows are ever missing, (Λz)_M is formed from those rows of Λ alone.
     m, n = 9, 40
     rng = np.random.default_rng(0)
     cov = random_spd(1, m)
     Z = rng.standard_normal((m, n))
     missing = rng.random((m, n)) < 0.3
+    missing[np.setdiff1d(np.arange(m), can_miss)] = False
     missing[:, 5:12] = missing[:, [4]]       # a missing set shared by several frames
     missing[:, 0] = False                    # a complete frame
     expected = Z.copy()
@@ -33,7 +36,13 @@ def test_conditional_step_is_the_textbook_conditional_expectation():
         expected[hid, t] = gain @ Z[seen, t]
         scatter[np.ix_(hid, hid)] += cov[np.ix_(hid, hid)] - gain @ cov[np.ix_(seen, hid)]
     got = np.where(missing, 123.0, Z)        # the values on M must not matter
-    out = gaussian.conditional_step(got, np.linalg.inv(cov), gaussian._missing_sets(missing))
+    sets = gaussian._missing_sets(missing)
+    unions = [group.union[0] for group in sets]
+    if len(can_miss) < m:
+        assert all(union is not None for union in unions)
+    else:                                    # and both kinds of group where any row can
+        assert {union is None for union in unions} == {True, False}
+    out = gaussian.conditional_step(got, np.linalg.inv(cov), sets)
     np.testing.assert_allclose(got, expected, atol=1e-10)
     np.testing.assert_allclose(out, scatter, atol=1e-10)
 
