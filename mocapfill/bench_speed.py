@@ -120,7 +120,7 @@ def time_command(args: list[str], runs: int) -> tuple[list[float], float]:
 
 
 def _cli() -> list[str]:
-    return [sys.executable, "-m", "mocapfill.cli"]
+    return [sys.executable, "-m", "mocapfill"]             # what the console script runs
 
 
 def iteration_floor_ms(m: int, n: int, d: int | None = None, dtype: type = np.float64

@@ -269,33 +269,109 @@ def test_a_bad_thread_count_is_a_usage_error_and_writes_nothing(clip_files, monk
     assert not (clip_files / "out.npz").exists()
 
 
-def test_ctrl_c_during_a_solve_leaves_without_finalising_under_the_solver_threads(
-        clip_files, monkeypatch):
-    # Finalising the interpreter while a solver thread is inside pocketfft aborted the
-    # process (SIGABRT, 6 of 16 interrupted repairs of 85_12) instead of exiting 130.
-    import os
-    import threading
+# A command interrupted in its solve: the solvers' run_all starts a solver thread (as the
+# real one does), writes "started" and waits; SIGINT then reaches it as KeyboardInterrupt.
+_INTERRUPTIBLE = """
+import atexit, os, sys, threading, time
+if os.path.exists("started"):       # a shell loop that went on to the next file
+    sys.exit(0)
+from mocapfill.solvers import gapwise
 
-    from mocapfill.solvers import gapwise
-
-    exits = []
-    monkeypatch.setattr(os, "_exit", lambda code: exits.append(code) or sys.exit(code))
-    started, release = threading.Event(), threading.Event()
-
-    def interrupted(jobs, lanes=None, **options):
-        worker = threading.Thread(target=lambda: (started.set(), release.wait(10)),
-                                  name="mocapfill-0", daemon=True)
-        worker.start()
-        started.wait(10)
+def stalled(jobs, lanes=None, **options):
+    threading.Thread(target=time.sleep, args=(60,), name="mocapfill-0", daemon=True).start()
+    open("started", "w").close()
+    if os.environ.get("SELF_INTERRUPT"):
         raise KeyboardInterrupt
+    time.sleep(60)
 
-    monkeypatch.setattr(gapwise, "run_all", interrupted)
+gapwise.run_all = stalled
+atexit.register(lambda: print("finalised", flush=True))
+sys.argv = ["mocapfill", "repair", "gapped.npz", sys.argv[1]]
+from mocapfill.__main__ import run
+run()
+"""
+
+
+def test_ctrl_c_ends_the_command_by_sigint_at_once_under_the_solver_threads(clip_files):
+    # By SIGINT, not by exit(130): a shell loop over files stops only then (next test).
+    # At once: finalising the interpreter while a solver thread was inside pocketfft
+    # aborted the process (SIGABRT, 6 of 16 interrupted repairs of 85_12).
+    import os
+    import signal
+    import subprocess
+
+    done = subprocess.run([sys.executable, "-c", _INTERRUPTIBLE, "o.npz"], cwd=clip_files,
+                          capture_output=True, text=True, timeout=60,
+                          env={**os.environ, "SELF_INTERRUPT": "1"})
+    assert done.returncode == -signal.SIGINT
+    assert done.stderr == "mocapfill: error: interrupted\n"
+    assert "finalised" not in done.stdout
+    assert not (clip_files / "o.npz").exists()
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX shells and process groups")
+def test_ctrl_c_stops_a_shell_loop_over_files(clip_files):
+    # Ctrl-C reaches the terminal's whole process group: the shell and the command. The
+    # shell goes on with its loop unless the command died of SIGINT; mocapfill exited 130
+    # by itself, and a loop over a thousand clips took a Ctrl-C per clip.
+    import os
+    import shutil
+    import signal
+    import subprocess
+    import time
+
+    if shutil.which("bash") is None:
+        pytest.skip("no bash on this machine")
+    script = clip_files / "interruptible.py"
+    script.write_text(_INTERRUPTIBLE)
+    loop = (f'for out in a.npz b.npz; do "{sys.executable}" {script.name} "$out"; '
+            f'echo "after $out: $?"; done')
+
+    def own_group_with_default_sigint():
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        os.setpgrp()
+
+    shell = subprocess.Popen(["bash", "-c", loop], cwd=clip_files, text=True,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             preexec_fn=own_group_with_default_sigint)
     try:
-        result = run("repair", clip_files / "gapped.npz", clip_files / "o.npz")
+        deadline = time.monotonic() + 60
+        while not (clip_files / "started").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        os.killpg(shell.pid, signal.SIGINT)
+        out, err = shell.communicate(timeout=60)
     finally:
-        release.set()
-    assert result.exit_code == 130 and exits == [130]
-    assert "interrupted" in result.stderr and not (clip_files / "o.npz").exists()
+        if shell.poll() is None:
+            os.killpg(shell.pid, signal.SIGKILL)
+    assert "after" not in out, out           # the loop stopped with the first file
+    assert err.count("mocapfill: error: interrupted") == 1
+    assert not list(clip_files.glob("[ab].npz"))
+
+
+def test_ctrl_c_while_the_command_line_loads_is_one_line_not_a_traceback(clip_files):
+    # The console script loads click and every command's definition (a tenth of a second)
+    # before any of mocapfill's handlers runs; Ctrl-C there printed a traceback.
+    import signal
+    import subprocess
+
+    script = """
+import builtins, os, signal
+real_import = builtins.__import__
+
+def importing(name, *args, **kwargs):
+    if name == "click":
+        os.kill(os.getpid(), signal.SIGINT)
+    return real_import(name, *args, **kwargs)
+
+builtins.__import__ = importing
+from mocapfill.__main__ import run
+run()
+"""
+    done = subprocess.run([sys.executable, "-c", script, "repair", "gapped.npz", "o.npz"],
+                          cwd=clip_files, capture_output=True, text=True, timeout=60)
+    assert done.returncode == -signal.SIGINT
+    assert done.stderr == "mocapfill: error: interrupted\n"
+    assert not (clip_files / "o.npz").exists()
 
 
 def test_a_one_frame_skeleton_clip_is_refused_in_channel_space_too(tmp_path):
