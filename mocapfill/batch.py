@@ -462,16 +462,44 @@ def _not_filled(result) -> str:
 Progress = Callable[[int, int, "FileRecord | None"], None]
 
 
-def _single_threaded_worker() -> None:
+def _single_threaded_worker(parent: int | None = None) -> None:
     """Initializer of a local worker process: BLAS variables (again, for anything that
-    reads them late), and signal handling."""
+    reads them late), signal handling, and a watch on the pool's process ``parent``."""
     import signal
+    import threading
 
     os.environ.update(SINGLE_THREADED)
     # The parent owns Ctrl-C: it stops the workers itself (SIGTERM, below), so a terminal
     # Ctrl-C does not print one traceback per worker.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _exit_on_terminate)
+    if parent is not None:
+        threading.Thread(target=_watch_parent, args=(parent,), name="parent-watch",
+                         daemon=True).start()
+
+
+_PARENT_POLL = 0.5      # seconds between two looks at the parent
+_PARENT_GRACE = 2.0     # seconds a worker orphaned mid-file has to unwind
+
+
+def _watch_parent(parent: int) -> None:
+    """Stop this worker once the pool's process is gone.
+
+    A batch stopped by SIGTERM (``timeout``, a job scheduler's cancel), SIGKILL or the
+    out-of-memory killer has no chance to stop its workers, and an idle worker waits on
+    the pool's queue for ever: it holds that pipe's writing end itself, so no end of file
+    comes (measured: a worker of ``timeout 2 mocapfill repair DIR -o OUT -j 2`` still
+    asleep half a minute later, 58 MB, with the pool's resource tracker beside it). The
+    worker is stopped as the pool would stop it (SIGTERM: a file being written loses its
+    temporary), then ended if it has not left by itself.
+    """
+    import signal
+
+    while os.getppid() == parent:
+        time.sleep(_PARENT_POLL)
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(_PARENT_GRACE)
+    os._exit(128 + signal.SIGTERM)
 
 
 _TERMINATING: list[int] = []      # the signal that stops this worker process, once sent
@@ -567,7 +595,8 @@ def _run_pool(jobs: Sequence[FileJob], workers: int,
     # import numpy before any initializer runs.
     executor = ProcessPoolExecutor(max_workers=workers,
                                    mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_single_threaded_worker)
+                                   initializer=_single_threaded_worker,
+                                   initargs=(os.getpid(),))
     try:
         with temporary_environment(SINGLE_THREADED):
             futures = {executor.submit(repair_file, job): job for job in jobs}

@@ -359,6 +359,56 @@ def test_a_stopped_worker_prints_no_ignored_exceptions(monkeypatch, capsys):
     assert capsys.readouterr().err == ""
 
 
+_POOL_PARENT = """
+import multiprocessing, os, sys, time
+from concurrent.futures import ProcessPoolExecutor
+from mocapfill import batch
+
+if __name__ == "__main__":
+    pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=batch._single_threaded_worker,
+                               initargs=(os.getpid(),))
+    pool.submit(time.sleep, 0).result()                 # the worker is up
+    if sys.argv[1] == "busy":
+        pool.submit(time.sleep, 60)
+    print(*pool._processes, flush=True)
+    time.sleep(60)
+"""
+
+
+def _running(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+@pytest.mark.parametrize("worker", ["idle", "busy"])
+def test_workers_leave_when_the_pool_process_is_killed(tmp_path, worker):
+    # `timeout`, a scheduler's cancel or the OOM killer ends the batch without a word to
+    # its workers; an idle one waited on the pool's queue for ever (it holds the pipe's
+    # other end itself), a busy one finished its file first.
+    import signal
+    import subprocess
+
+    script = tmp_path / "pool_parent.py"
+    script.write_text(_POOL_PARENT)
+    parent = subprocess.Popen([sys.executable, str(script), worker], stdout=subprocess.PIPE,
+                              text=True)
+    try:
+        workers = [int(pid) for pid in parent.stdout.readline().split()]
+        assert workers and all(_running(pid) for pid in workers)
+    finally:
+        parent.send_signal(signal.SIGKILL)
+        parent.wait(10)
+    deadline = time.monotonic() + 15
+    while any(_running(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(_running(pid) for pid in workers)
+
+
 def test_a_worker_stopped_by_the_pool_starts_no_further_file(tmp_path, monkeypatch):
     # The pool's worker loop catches the SystemExit that SIGTERM raises in a job and goes
     # on to the next queued file: after Ctrl-C that file was repaired, written (3 s after
