@@ -1,12 +1,18 @@
-"""How the ``mocapfill`` command ends after Ctrl-C: one line on stderr, then death by SIGINT.
+"""How the ``mocapfill`` command ends when stopped: one line on stderr, then death by the
+signal that stopped it.
 
-A shell running the command in a loop (``for f in *.c3d; do mocapfill repair "$f" ...;
-done``) stops the loop only when the command died of the signal. A command that catches
-Ctrl-C and exits 130 by itself tells the shell it handled the interruption, and the loop
-goes on to the next file: one Ctrl-C per file, thousands of them. Python ends this way
-after an uncaught KeyboardInterrupt; mocapfill catches it to clean up and print one line,
-so it must end that way itself. The shell reports 130 (128 + SIGINT) either way; a parent
-in Python sees returncode −2.
+Ctrl-C (SIGINT): a shell running the command in a loop (``for f in *.c3d; do mocapfill
+repair "$f" ...; done``) stops the loop only when the command died of the signal. A
+command that catches Ctrl-C and exits 130 by itself tells the shell it handled the
+interruption, and the loop goes on to the next file: one Ctrl-C per file, thousands of
+them. Python ends this way after an uncaught KeyboardInterrupt; mocapfill catches it to
+clean up and print one line, so it must end that way itself. The shell reports 130
+(128 + SIGINT) either way; a parent in Python sees returncode −2.
+
+SIGTERM (``timeout``, a job scheduler's cancel or time limit, ``kill``): the command
+stops as after Ctrl-C — a file being written loses its temporary, a batch stops its
+workers and writes its report of the files finished — then ends by SIGTERM (143 to a
+shell, 124 from ``timeout``). Its default action ended the command where it stood.
 
 Kept apart from :mod:`mocapfill.cli` so that :mod:`mocapfill.__main__` can use it before
 loading the command line (click and every command's definition), which takes a tenth of
@@ -19,23 +25,56 @@ import signal
 
 EXIT_INTERRUPTED = 130
 
+_TERMINATED: list[int] = []     # SIGTERM, once it has stopped the command
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the command is so that it stops as after Ctrl-C."""
+
+
+def stop_on_sigterm() -> None:
+    """Have SIGTERM raise :class:`Terminated` in this (main) thread from now on, unless
+    the caller chose what SIGTERM does (a handler, or SIG_IGN as under ``nohup``-like
+    wrappers)."""
+    try:
+        if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
+            signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:          # not the main thread
+        pass
+
+
+def _terminate(signum, frame) -> None:
+    # Once: ``timeout`` sends SIGTERM twice (to the command, then to its process group),
+    # and a second Terminated would break off the stopping of the first half-way.
+    if _TERMINATED:
+        return
+    _TERMINATED.append(signum)
+    raise Terminated
+
+
+def reason() -> str:
+    """What stopped the command, as its error line says it."""
+    return "terminated" if _TERMINATED else "interrupted"
+
 
 def say_interrupted() -> None:
     """The one line, written straight to stderr (it may come from a signal handler)."""
     try:
-        os.write(2, b"mocapfill: error: interrupted\n")
+        os.write(2, f"mocapfill: error: {reason()}\n".encode())
     except OSError:
         pass
 
 
 def die_interrupted() -> None:
-    """End this process by SIGINT, at once (no finalisation), exit 130 if that fails."""
+    """End this process by the signal that stopped it (SIGINT unless SIGTERM did), at once
+    (no finalisation); 128 + its number if that fails."""
+    stop = signal.SIGTERM if _TERMINATED else signal.SIGINT
     try:
-        signal.signal(signal.SIGINT, signal.SIG_DFL)
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, [signal.SIGINT])
-        os.kill(os.getpid(), signal.SIGINT)
+        signal.signal(stop, signal.SIG_DFL)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, [stop])
+        os.kill(os.getpid(), stop)
     finally:
-        os._exit(EXIT_INTERRUPTED)
+        os._exit(128 + stop)
 
 
 def interrupted_while_loading(signum, frame) -> None:

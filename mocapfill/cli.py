@@ -2,7 +2,8 @@
 
 Exit codes: 0 ok; 1 ``--check`` found gaps left unfilled; 2 usage (bad option, parameter
 out of range, missing input, unknown file type); 123 a file could not be read, repaired or
-written (one line on stderr names it); 130 interrupted.
+written (one line on stderr names it); 130 interrupted; 143 terminated (SIGTERM). The last
+two end the process by that signal (``mocapfill._interrupt``).
 Heavy imports (numpy, scipy) happen inside the commands so ``mocapfill --help`` is quick.
 """
 from __future__ import annotations
@@ -16,7 +17,8 @@ from pathlib import Path
 import click
 
 from ._blas import one_thread_by_default
-from ._interrupt import EXIT_INTERRUPTED, die_interrupted, say_interrupted
+from ._interrupt import EXIT_INTERRUPTED, die_interrupted, say_interrupted, stop_on_sigterm
+from ._interrupt import reason as stop_reason
 from ._memory import tune_heap
 
 # One BLAS thread unless the user chose otherwise (set OPENBLAS_NUM_THREADS etc. to
@@ -59,7 +61,7 @@ class _Group(click.Group):
         except click.ClickException as exc:
             _fail(exc.format_message(), exc.exit_code)
         except click.Abort:
-            _fail("interrupted", EXIT_INTERRUPTED)
+            _fail(stop_reason(), EXIT_INTERRUPTED)
         sys.exit(code if isinstance(code, int) else 0)
 
     def invoke(self, ctx: click.Context):
@@ -80,7 +82,7 @@ class _Group(click.Group):
         except MocapfillError as exc:
             _fail(str(exc), EXIT_FAILED)
         except KeyboardInterrupt:
-            _fail("interrupted", EXIT_INTERRUPTED)
+            _fail(stop_reason(), EXIT_INTERRUPTED)
         except OSError as exc:  # disk full, permission denied, ...
             name = f"{exc.filename}: " if exc.filename else ""
             _fail(f"{name}{exc.strerror or exc}", EXIT_FAILED)
@@ -92,7 +94,7 @@ def main() -> None:
     """Repair gaps in motion-capture marker data (C3D, TRC, CSV, BVH, ASF/AMC).
 
     Exit codes: 0 ok, 1 --check found unfilled gaps, 2 usage error, 123 a file failed,
-    130 interrupted.
+    130 interrupted, 143 terminated (SIGTERM).
     """
 
 
@@ -421,7 +423,7 @@ def _repair_batch(paths, options, *, max_gap_s, out_dir, in_place, force, jobs, 
     except BatchInterrupted as exc:
         progress.close()
         _finish_batch(exc.report, report_path)
-        _fail("interrupted", EXIT_INTERRUPTED)
+        _fail(stop_reason(), EXIT_INTERRUPTED)
     finally:
         progress.close()
     _finish_batch(report, report_path)
@@ -732,12 +734,14 @@ def run() -> None:
     (a thread of a Dask client still running, a flush that fails on a closed pipe), the
     exit is Python's usual one. Tests and other callers of :func:`main` are not affected.
 
-    After Ctrl-C the process ends by SIGINT (see :mod:`mocapfill._interrupt`), at once even
-    where threads run: finalising the interpreter while a solver thread is inside C++
-    code (pocketfft) aborted the process (SIGABRT, 6 of 16 interrupted repairs of 85_12).
+    After Ctrl-C (or SIGTERM, which stops the command the same way) the process ends by
+    that signal (see :mod:`mocapfill._interrupt`), at once even where threads run:
+    finalising the interpreter while a solver thread is inside C++ code (pocketfft)
+    aborted the process (SIGABRT, 6 of 16 interrupted repairs of 85_12).
     """
     import threading
 
+    stop_on_sigterm()
     try:
         main()
         code = 0

@@ -1,6 +1,7 @@
 """The command line: exit codes, one-line errors, atomic outputs, JSON shapes."""
 import json
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -346,6 +347,96 @@ def test_ctrl_c_stops_a_shell_loop_over_files(clip_files):
     assert "after" not in out, out           # the loop stopped with the first file
     assert err.count("mocapfill: error: interrupted") == 1
     assert not list(clip_files.glob("[ab].npz"))
+
+
+def _wait_for(path, seconds: float = 60) -> None:
+    import time
+
+    deadline = time.monotonic() + seconds
+    while not path.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert path.exists(), f"{path.name} never appeared"
+
+
+def test_sigterm_stops_the_command_as_ctrl_c_does_and_ends_it_by_sigterm(clip_files):
+    # `timeout`, a scheduler's cancel: the command stopped where it stood (a file being
+    # written kept its temporary) and said nothing. Sent twice, as `timeout` does (to the
+    # command, then to its process group).
+    import signal
+    import subprocess
+
+    command = subprocess.Popen([sys.executable, "-c", _INTERRUPTIBLE, "o.npz"],
+                               cwd=clip_files, text=True, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE)
+    try:
+        _wait_for(clip_files / "started")
+        command.send_signal(signal.SIGTERM)
+        command.send_signal(signal.SIGTERM)
+        out, err = command.communicate(timeout=60)
+    finally:
+        command.kill()
+    assert command.returncode == -signal.SIGTERM
+    assert err == "mocapfill: error: terminated\n"
+    assert "finalised" not in out and not (clip_files / "o.npz").exists()
+
+
+def test_a_second_sigterm_does_not_break_off_the_stopping_of_the_first(monkeypatch):
+    # `timeout` sends SIGTERM to the command and then to its process group; a second
+    # Terminated raised inside the clean-up (the pool's workers being stopped) left them
+    # unstopped.
+    import signal
+
+    from mocapfill import _interrupt
+
+    monkeypatch.setattr(_interrupt, "_TERMINATED", [])
+    with pytest.raises(_interrupt.Terminated):
+        _interrupt._terminate(signal.SIGTERM, None)
+    try:
+        _interrupt._terminate(signal.SIGTERM, None)
+    except _interrupt.Terminated:           # (a KeyboardInterrupt: pytest would stop)
+        pytest.fail("the second SIGTERM raised again")
+    assert _interrupt.reason() == "terminated"
+
+
+_BATCH_STALLING_ON_ITS_SECOND_FILE = """
+import sys, time
+from mocapfill import batch
+from mocapfill.__main__ import run
+
+real = batch.repair_file
+def second_stalls(job):
+    if job.input.name == "b.npz":
+        open("started", "w").close()
+        time.sleep(60)
+    return real(job)
+
+batch.repair_file = second_stalls
+sys.argv = ["mocapfill", "repair", "in", "-o", "out", "-j", "1", "--report", "r.json"]
+run()
+"""
+
+
+def test_sigterm_stops_a_batch_with_its_report_of_the_files_finished(clip_files):
+    import signal
+    import subprocess
+
+    (clip_files / "in").mkdir()
+    for name in ("a.npz", "b.npz"):
+        (clip_files / "in" / name).write_bytes((clip_files / "gapped.npz").read_bytes())
+    command = subprocess.Popen([sys.executable, "-c", _BATCH_STALLING_ON_ITS_SECOND_FILE],
+                               cwd=clip_files, text=True, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE)
+    try:
+        _wait_for(clip_files / "started")
+        command.send_signal(signal.SIGTERM)
+        _, err = command.communicate(timeout=60)
+    finally:
+        command.kill()
+    assert command.returncode == -signal.SIGTERM
+    assert err.strip().splitlines()[-1] == "mocapfill: error: terminated"
+    report = json.loads((clip_files / "r.json").read_text())
+    assert [Path(f["input"]).name for f in report["files"]] == ["a.npz"]
+    assert sorted(p.name for p in (clip_files / "out").iterdir()) == ["a.npz"]
 
 
 def test_ctrl_c_while_the_command_line_loads_is_one_line_not_a_traceback(clip_files):
