@@ -9,10 +9,11 @@ them. Python ends this way after an uncaught KeyboardInterrupt; mocapfill catche
 clean up and print one line, so it must end that way itself. The shell reports 130
 (128 + SIGINT) either way; a parent in Python sees returncode −2.
 
-SIGTERM (``timeout``, a job scheduler's cancel or time limit, ``kill``): the command
-stops as after Ctrl-C — a file being written loses its temporary, a batch stops its
-workers and writes its report of the files finished — then ends by SIGTERM (143 to a
-shell, 124 from ``timeout``). Its default action ended the command where it stood.
+SIGTERM (``timeout``, a job scheduler's cancel or time limit, ``kill``) and SIGHUP (the
+terminal or the ssh session closed): the command stops as after Ctrl-C — a file being
+written loses its temporary, a batch stops its workers and writes its report of the files
+finished — then ends by that signal (143 or 129 to a shell, 124 from ``timeout``). Their
+default action ended the command where it stood, temporaries and all.
 
 Kept apart from :mod:`mocapfill.cli` so that :mod:`mocapfill.__main__` can use it before
 loading the command line (click and every command's definition), which takes a tenth of
@@ -25,20 +26,26 @@ import signal
 
 EXIT_INTERRUPTED = 130
 
-_TERMINATED: list[int] = []     # SIGTERM, once it has stopped the command
+_TERMINATED: list[int] = []     # the signal (SIGTERM, SIGHUP) that stopped the command
+
+# The signals that stop the command as Ctrl-C does, and how its error line names them.
+_REASONS = {signal.SIGTERM: "terminated"}
+if hasattr(signal, "SIGHUP"):                   # not on Windows
+    _REASONS[signal.SIGHUP] = "hung up"
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where the command is so that it stops as after Ctrl-C."""
+    """SIGTERM or SIGHUP, raised where the command is so that it stops as after Ctrl-C."""
 
 
-def stop_on_sigterm() -> None:
-    """Have SIGTERM raise :class:`Terminated` in this (main) thread from now on, unless
-    the caller chose what SIGTERM does (a handler, or SIG_IGN as under ``nohup``-like
-    wrappers)."""
+def stop_on_signals() -> None:
+    """Have SIGTERM and SIGHUP raise :class:`Terminated` in this (main) thread from now
+    on, each unless the caller chose what it does (a handler, or SIG_IGN as ``nohup``
+    sets for SIGHUP)."""
     try:
-        if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
-            signal.signal(signal.SIGTERM, _terminate)
+        for signum in _REASONS:
+            if signal.getsignal(signum) == signal.SIG_DFL:
+                signal.signal(signum, _terminate)
     except ValueError:          # not the main thread
         pass
 
@@ -54,7 +61,7 @@ def _terminate(signum, frame) -> None:
 
 def reason() -> str:
     """What stopped the command, as its error line says it."""
-    return "terminated" if _TERMINATED else "interrupted"
+    return _REASONS[_TERMINATED[0]] if _TERMINATED else "interrupted"
 
 
 def say_interrupted() -> None:
@@ -66,9 +73,9 @@ def say_interrupted() -> None:
 
 
 def die_interrupted() -> None:
-    """End this process by the signal that stopped it (SIGINT unless SIGTERM did), at once
+    """End this process by the signal that stopped it (SIGINT, SIGTERM or SIGHUP), at once
     (no finalisation); 128 + its number if that fails."""
-    stop = signal.SIGTERM if _TERMINATED else signal.SIGINT
+    stop = _TERMINATED[0] if _TERMINATED else signal.SIGINT
     try:
         signal.signal(stop, signal.SIG_DFL)
         signal.pthread_sigmask(signal.SIG_UNBLOCK, [stop])

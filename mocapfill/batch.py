@@ -470,8 +470,11 @@ def _single_threaded_worker(parent: int | None = None) -> None:
 
     os.environ.update(SINGLE_THREADED)
     # The parent owns Ctrl-C: it stops the workers itself (SIGTERM, below), so a terminal
-    # Ctrl-C does not print one traceback per worker.
+    # Ctrl-C does not print one traceback per worker. The same for a terminal's hang-up,
+    # which killed the workers mid-write (their temporaries left behind).
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "SIGHUP"):
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _exit_on_terminate)
     if parent is not None:
         threading.Thread(target=_watch_parent, args=(parent,), name="parent-watch",
@@ -582,6 +585,26 @@ def _drop_dead(alive: dict, timeout: float | None) -> None:
             del alive[sentinel]
 
 
+@contextmanager
+def _hang_ups_ignored():
+    """SIGHUP ignored while the pool's processes start (its resource tracker with its
+    queues, its workers with the submits): they keep that across exec. A terminal's
+    hang-up reaches every process of its group, and the tracker (which ignores SIGINT and
+    SIGTERM only) died of it, was started again and printed a KeyError traceback per
+    semaphore; the command stops the workers itself (see ``mocapfill._interrupt``)."""
+    import signal
+
+    try:
+        previous = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    except (AttributeError, ValueError):        # no SIGHUP (Windows), not the main thread
+        previous = None
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGHUP, previous)
+
+
 def _run_pool(jobs: Sequence[FileJob], workers: int,
               done: Callable[[FileRecord], None]) -> None:
     import multiprocessing
@@ -593,12 +616,13 @@ def _run_pool(jobs: Sequence[FileJob], workers: int,
     # variables are in the environment the workers are started with — they start during
     # the submits — because a spawned child re-imports the caller's __main__, which may
     # import numpy before any initializer runs.
-    executor = ProcessPoolExecutor(max_workers=workers,
-                                   mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_single_threaded_worker,
-                                   initargs=(os.getpid(),))
+    with _hang_ups_ignored():
+        executor = ProcessPoolExecutor(max_workers=workers,
+                                       mp_context=multiprocessing.get_context("spawn"),
+                                       initializer=_single_threaded_worker,
+                                       initargs=(os.getpid(),))
     try:
-        with temporary_environment(SINGLE_THREADED):
+        with temporary_environment(SINGLE_THREADED), _hang_ups_ignored():
             futures = {executor.submit(repair_file, job): job for job in jobs}
         for future in as_completed(futures):
             try:

@@ -2,8 +2,8 @@
 
 Exit codes: 0 ok; 1 ``--check`` found gaps left unfilled; 2 usage (bad option, parameter
 out of range, missing input, unknown file type); 123 a file could not be read, repaired or
-written (one line on stderr names it); 130 interrupted; 143 terminated (SIGTERM). The last
-two end the process by that signal (``mocapfill._interrupt``).
+written (one line on stderr names it); 130 interrupted; 143 terminated (SIGTERM); 129 hung
+up (SIGHUP). The last three end the process by that signal (``mocapfill._interrupt``).
 Heavy imports (numpy, scipy) happen inside the commands so ``mocapfill --help`` is quick.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ from pathlib import Path
 import click
 
 from ._blas import one_thread_by_default
-from ._interrupt import EXIT_INTERRUPTED, die_interrupted, say_interrupted, stop_on_sigterm
+from ._interrupt import EXIT_INTERRUPTED, die_interrupted, say_interrupted, stop_on_signals
 from ._interrupt import reason as stop_reason
 from ._memory import tune_heap
 
@@ -40,7 +40,10 @@ def _fail(message: str, code: int) -> None:
     # newlines; the error stays one printable line whatever the file contained.
     text = " ".join(message.split())
     text = text.encode("utf-8", "backslashreplace").decode("utf-8")
-    click.echo(f"mocapfill: error: {text}", err=True)
+    try:
+        click.echo(f"mocapfill: error: {text}", err=True)
+    except OSError:         # no stderr left (a terminal hung up): the exit code stands
+        pass
     sys.exit(code)
 
 
@@ -94,7 +97,7 @@ def main() -> None:
     """Repair gaps in motion-capture marker data (C3D, TRC, CSV, BVH, ASF/AMC).
 
     Exit codes: 0 ok, 1 --check found unfilled gaps, 2 usage error, 123 a file failed,
-    130 interrupted, 143 terminated (SIGTERM).
+    130 interrupted, 143 terminated (SIGTERM), 129 hung up (SIGHUP).
     """
 
 
@@ -734,14 +737,14 @@ def run() -> None:
     (a thread of a Dask client still running, a flush that fails on a closed pipe), the
     exit is Python's usual one. Tests and other callers of :func:`main` are not affected.
 
-    After Ctrl-C (or SIGTERM, which stops the command the same way) the process ends by
+    After Ctrl-C (or SIGTERM or SIGHUP, which stop the command the same way) it ends by
     that signal (see :mod:`mocapfill._interrupt`), at once even where threads run:
     finalising the interpreter while a solver thread is inside C++ code (pocketfft)
     aborted the process (SIGABRT, 6 of 16 interrupted repairs of 85_12).
     """
     import threading
 
-    stop_on_sigterm()
+    stop_on_signals()
     try:
         main()
         code = 0

@@ -5,6 +5,7 @@ import json
 import multiprocessing
 import os
 import re
+import signal
 import sys
 import time
 from pathlib import Path
@@ -407,6 +408,35 @@ def test_workers_leave_when_the_pool_process_is_killed(tmp_path, worker):
     while any(_running(pid) for pid in workers) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not any(_running(pid) for pid in workers)
+
+
+def _ignores_sighup(pid: int) -> bool:
+    with open(f"/proc/{pid}/status") as status:
+        mask = next(line for line in status if line.startswith("SigIgn:")).split()[1]
+    return bool(int(mask, 16) & 1 << (signal.SIGHUP - 1))
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc")
+def test_the_pools_processes_ignore_a_terminals_hang_up(clean_tree, tmp_path):
+    # A closed terminal sends SIGHUP to its whole process group: the pool's resource
+    # tracker died of it (then was started again, with a KeyError traceback per
+    # semaphore) and the workers mid-write left their temporaries. The command stops
+    # them itself.
+    from multiprocessing import resource_tracker
+
+    root, _ = clean_tree
+    seen = []
+
+    def look(done, total, record):
+        if done == 1:
+            seen.extend(_ignores_sighup(p.pid) for p in multiprocessing.active_children())
+            seen.append(_ignores_sighup(resource_tracker._resource_tracker._pid))
+
+    previous = signal.getsignal(signal.SIGHUP)
+    mocapfill.repair_many(root, tmp_path / "out", options=RepairOptions(method="linear"),
+                          jobs=2, progress=look)
+    assert len(seen) >= 2 and all(seen)
+    assert signal.getsignal(signal.SIGHUP) == previous     # and this process as it was
 
 
 def test_a_worker_stopped_by_the_pool_starts_no_further_file(tmp_path, monkeypatch):

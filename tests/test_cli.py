@@ -358,25 +358,30 @@ def _wait_for(path, seconds: float = 60) -> None:
     assert path.exists(), f"{path.name} never appeared"
 
 
-def test_sigterm_stops_the_command_as_ctrl_c_does_and_ends_it_by_sigterm(clip_files):
-    # `timeout`, a scheduler's cancel: the command stopped where it stood (a file being
-    # written kept its temporary) and said nothing. Sent twice, as `timeout` does (to the
-    # command, then to its process group).
+@pytest.mark.parametrize(("stop", "words"), [("SIGTERM", "terminated"), ("SIGHUP", "hung up")])
+def test_sigterm_and_sighup_stop_the_command_as_ctrl_c_does_and_end_it_so(clip_files, stop,
+                                                                          words):
+    # `timeout`, a scheduler's cancel, a closed terminal: the command stopped where it
+    # stood (a file being written kept its temporary) and said nothing. Sent twice, as
+    # `timeout` does (to the command, then to its process group).
     import signal
     import subprocess
 
+    if not hasattr(signal, stop):
+        pytest.skip(f"no {stop} here")
+    signum = getattr(signal, stop)
     command = subprocess.Popen([sys.executable, "-c", _INTERRUPTIBLE, "o.npz"],
                                cwd=clip_files, text=True, stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE)
     try:
         _wait_for(clip_files / "started")
-        command.send_signal(signal.SIGTERM)
-        command.send_signal(signal.SIGTERM)
+        command.send_signal(signum)
+        command.send_signal(signum)
         out, err = command.communicate(timeout=60)
     finally:
         command.kill()
-    assert command.returncode == -signal.SIGTERM
-    assert err == "mocapfill: error: terminated\n"
+    assert command.returncode == -signum
+    assert err == f"mocapfill: error: {words}\n"
     assert "finalised" not in out and not (clip_files / "o.npz").exists()
 
 

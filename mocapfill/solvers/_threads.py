@@ -215,8 +215,8 @@ def _answer(compute: Callable[[], T], sender, parent: int) -> None:
     """In a forked child: send ("ok", compute()) or ("error", exception) to the parent.
 
     Ctrl-C is left to the parent, which ends the child on its way out (SIGTERM, whose
-    default action is restored: a handler the program installed would keep the child
-    alive); the child also ends when the parent dies (Linux's parent-death signal),
+    default action is restored, as SIGHUP's: a handler the program installed would keep
+    the child alive); the child also ends when the parent dies (Linux's parent-death signal),
     rather than compute on for no one. Nothing escapes: ``multiprocessing`` would print a
     traceback. An exception that cannot be pickled is sent as a RuntimeError with its
     message.
@@ -225,6 +225,8 @@ def _answer(compute: Callable[[], T], sender, parent: int) -> None:
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if hasattr(signal, "SIGHUP"):               # the command's handler, like SIGTERM's
+        signal.signal(signal.SIGHUP, signal.SIG_DFL)
     _die_with(parent)
     try:
         answer = ("ok", compute())
