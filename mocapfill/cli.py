@@ -754,8 +754,12 @@ def run() -> None:
         say_interrupted()
         code = EXIT_INTERRUPTED
     try:
-        sys.stdout.flush()
-        sys.stderr.flush()
+        # None where the command was started with that stream closed (``>&-``): Python
+        # then has no sys.stdout, and flushing it was an AttributeError's traceback
+        # (exit 1) after a repair that had succeeded.
+        for stream in (sys.stdout, sys.stderr):
+            if stream is not None:
+                stream.flush()
     except (OSError, ValueError):
         if code != EXIT_INTERRUPTED:
             sys.exit(code)

@@ -559,6 +559,30 @@ def test_the_command_exits_with_its_code_and_its_output_flushed(clip_files, args
         assert formats.read(clip_files / "out.npz").observed.all()
 
 
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX file descriptors")
+@pytest.mark.parametrize(("closed", "code", "args"), [
+    (1, 0, ["repair", "gapped.npz", "out.npz"]),
+    (2, 0, ["repair", "gapped.npz", "out.npz"]),
+    (2, 2, ["repair", "missing.npz", "out.npz"]),
+    (1, 0, ["info", "gapped.npz", "--json"]),
+])
+def test_a_closed_standard_stream_changes_no_exit_code(clip_files, closed, code, args):
+    # Started with stdout or stderr closed (`>&-`), Python has sys.stdout = None: the
+    # exit's flush of it raised AttributeError, a traceback and exit 1 after a repair that
+    # had succeeded.
+    import os
+    import subprocess
+
+    done = subprocess.run(_COMMAND + args, cwd=clip_files, text=True, timeout=120,
+                          stdout=subprocess.PIPE if closed == 2 else None,
+                          stderr=subprocess.PIPE if closed == 1 else None,
+                          preexec_fn=lambda: os.close(closed))
+    assert done.returncode == code
+    assert "Traceback" not in (done.stdout or "") + (done.stderr or "")
+    if code == 0 and args[0] == "repair":
+        assert formats.read(clip_files / "out.npz").observed.all()
+
+
 _WITH_A_THREAD = """
 import atexit, sys, threading, time
 from mocapfill.cli import run
