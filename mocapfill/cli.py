@@ -346,6 +346,11 @@ def _batch_max_gap(text: str | None) -> tuple[int | None, float | None]:
     return frames, None
 
 
+def _stderr_is_a_terminal() -> bool:
+    # sys.stderr is None where the command was started with it closed (``2>&-``).
+    return sys.stderr is not None and sys.stderr.isatty()
+
+
 class _WindowProgress:
     """The progress bar of one long clip's windows (clips over 12,000 frames are solved in
     windows; a 30-minute clip takes minutes): stderr, only when it is a terminal."""
@@ -357,7 +362,7 @@ class _WindowProgress:
         return self
 
     def __call__(self, done: int, total: int) -> None:
-        if self.bar is None and sys.stderr.isatty():
+        if self.bar is None and _stderr_is_a_terminal():
             self.bar = click.progressbar(length=total, label="solving windows",
                                          file=sys.stderr, show_pos=True, show_eta=True)
             self.bar.__enter__()
@@ -382,7 +387,7 @@ class _BatchProgress:
         import time
 
         if record is None:
-            if sys.stderr.isatty() and total:
+            if _stderr_is_a_terminal() and total:
                 self.started = time.monotonic()
                 self.bar = click.progressbar(length=total, label="repairing", file=sys.stderr,
                                              show_pos=True, show_eta=True,

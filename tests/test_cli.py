@@ -565,13 +565,17 @@ def test_the_command_exits_with_its_code_and_its_output_flushed(clip_files, args
     (2, 0, ["repair", "gapped.npz", "out.npz"]),
     (2, 2, ["repair", "missing.npz", "out.npz"]),
     (1, 0, ["info", "gapped.npz", "--json"]),
+    (2, 0, ["repair", "gapped.npz", "copy.npz", "-o", "batch", "-j", "2"]),
 ])
 def test_a_closed_standard_stream_changes_no_exit_code(clip_files, closed, code, args):
     # Started with stdout or stderr closed (`>&-`), Python has sys.stdout = None: the
     # exit's flush of it raised AttributeError, a traceback and exit 1 after a repair that
-    # had succeeded.
+    # had succeeded; a batch asked it whether it was a terminal before its first file.
     import os
+    import shutil
     import subprocess
+
+    shutil.copy(clip_files / "gapped.npz", clip_files / "copy.npz")
 
     done = subprocess.run(_COMMAND + args, cwd=clip_files, text=True, timeout=120,
                           stdout=subprocess.PIPE if closed == 2 else None,
@@ -580,7 +584,8 @@ def test_a_closed_standard_stream_changes_no_exit_code(clip_files, closed, code,
     assert done.returncode == code
     assert "Traceback" not in (done.stdout or "") + (done.stderr or "")
     if code == 0 and args[0] == "repair":
-        assert formats.read(clip_files / "out.npz").observed.all()
+        repaired = ["batch/gapped.npz", "batch/copy.npz"] if "-o" in args else ["out.npz"]
+        assert all(formats.read(clip_files / name).observed.all() for name in repaired)
 
 
 _WITH_A_THREAD = """
