@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 
 EXIT_INTERRUPTED = 130
 
@@ -65,10 +66,14 @@ def reason() -> str:
 
 
 def say_interrupted() -> None:
-    """The one line, written straight to stderr (it may come from a signal handler)."""
+    """The one line, written straight to stderr's descriptor (it may come from a signal
+    handler). Not where the command started without stderr (``2>&-``): descriptor 2 may
+    then belong to a file the command opened."""
+    if sys.stderr is None:
+        return
     try:
-        os.write(2, f"mocapfill: error: {reason()}\n".encode())
-    except OSError:
+        os.write(sys.stderr.fileno(), f"mocapfill: error: {reason()}\n".encode())
+    except (OSError, ValueError):
         pass
 
 
