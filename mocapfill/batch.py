@@ -430,7 +430,12 @@ def repair_file(job: FileJob) -> FileRecord:
         reason = f"no gap filled ({_not_filled(result)})" if result.gaps else "no gaps"
         return record(UNCHANGED, reason, 0, result.left)
     except FormatError as exc:
-        return record(FAILED, exc.problem)
+        # The record goes out under the input's name; an error about another file (the
+        # output: "No space left on device" while writing it) keeps that file's name, which
+        # was dropped, as if the input's disk were full.
+        if exc.path is None or Path(exc.path) == job.input:
+            return record(FAILED, exc.problem)
+        return record(FAILED, str(exc))
     except MocapfillError as exc:
         return record(FAILED, _problem(exc, job.input))
     except OSError as exc:

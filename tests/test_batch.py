@@ -293,6 +293,28 @@ def test_max_gap_in_seconds_fails_a_file_without_rate_and_converts_at_each_files
     assert not formats.read(tmp_path / "out" / "fast.npz").observed.all()
 
 
+def test_a_write_that_fails_names_the_output_a_read_the_input_alone(tmp_path, monkeypatch):
+    # Records are reported under the input's name: "in/a.npz: No space left on device"
+    # said nothing of the output's disk, which was the full one.
+    from mocapfill.errors import FormatError
+
+    root = tmp_path / "in"
+    root.mkdir()
+    formats.write(with_gap(smooth_clip(200, 4), 1, 100, 130), root / "a.npz")
+    (root / "b.npz").write_bytes(b"not a numpy archive")
+
+    def full_disk(motion, path, **options):
+        raise FormatError(path, "No space left on device")
+
+    monkeypatch.setattr(formats, "write", full_disk)
+    report = mocapfill.repair_many([root], tmp_path / "out", jobs=1,
+                                   options=RepairOptions(method="linear"))
+    reasons = {Path(r.input).name: r.reason for r in report.records}
+    assert reasons["a.npz"] == f"{tmp_path / 'out' / 'a.npz'}: No space left on device"
+    # A read error's file is the input, which the record names already: not twice.
+    assert reasons["b.npz"] and str(root) not in reasons["b.npz"]
+
+
 def test_a_skeleton_suffix_for_marker_inputs_fails_each_file_before_its_repair(
         clean_tree, tmp_path, monkeypatch):
     import mocapfill.pipeline
