@@ -5,7 +5,6 @@ import json
 import multiprocessing
 import os
 import re
-import signal
 import sys
 import time
 from pathlib import Path
@@ -432,21 +431,20 @@ def test_workers_leave_when_the_pool_process_is_killed(tmp_path, worker):
     assert not any(_running(pid) for pid in workers)
 
 
-def _ignores_sighup(pid: int) -> bool:
+_HANG_UP_PROBE = """
+import multiprocessing, signal, sys
+from multiprocessing import resource_tracker
+import mocapfill
+from mocapfill.pipeline import RepairOptions
+
+
+def _ignores_sighup(pid):
     with open(f"/proc/{pid}/status") as status:
         mask = next(line for line in status if line.startswith("SigIgn:")).split()[1]
     return bool(int(mask, 16) & 1 << (signal.SIGHUP - 1))
 
 
-@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc")
-def test_the_pools_processes_ignore_a_terminals_hang_up(clean_tree, tmp_path):
-    # A closed terminal sends SIGHUP to its whole process group: the pool's resource
-    # tracker died of it (then was started again, with a KeyError traceback per
-    # semaphore) and the workers mid-write left their temporaries. The command stops
-    # them itself.
-    from multiprocessing import resource_tracker
-
-    root, _ = clean_tree
+if __name__ == "__main__":
     seen = []
 
     def look(done, total, record):
@@ -455,10 +453,29 @@ def test_the_pools_processes_ignore_a_terminals_hang_up(clean_tree, tmp_path):
             seen.append(_ignores_sighup(resource_tracker._resource_tracker._pid))
 
     previous = signal.getsignal(signal.SIGHUP)
-    mocapfill.repair_many(root, tmp_path / "out", options=RepairOptions(method="linear"),
-                          jobs=2, progress=look)
-    assert len(seen) >= 2 and all(seen)
-    assert signal.getsignal(signal.SIGHUP) == previous     # and this process as it was
+    mocapfill.repair_many(sys.argv[1], sys.argv[2],
+                          options=RepairOptions(method="linear"), jobs=2, progress=look)
+    print(len(seen), all(seen), signal.getsignal(signal.SIGHUP) == previous)
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc")
+def test_the_pools_processes_ignore_a_terminals_hang_up(clean_tree, tmp_path):
+    # A closed terminal sends SIGHUP to its whole process group: the pool's resource
+    # tracker died of it (then was started again, with a KeyError traceback per
+    # semaphore) and the workers mid-write left their temporaries. The command stops
+    # them itself. In a fresh process, whose resource tracker the batch starts.
+    import subprocess
+
+    root, _ = clean_tree
+    script = tmp_path / "probe.py"
+    script.write_text(_HANG_UP_PROBE)
+    done = subprocess.run([sys.executable, str(script), str(root), str(tmp_path / "out")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    count, ignored, restored = done.stdout.split()
+    assert int(count) >= 3                      # two workers and the tracker
+    assert ignored == "True" and restored == "True"     # and this process as it was
 
 
 def test_a_worker_stopped_by_the_pool_starts_no_further_file(tmp_path, monkeypatch):
