@@ -169,7 +169,11 @@ class BatchReport:
         path = Path(path)
         if path.suffix.lower() != ".json":
             raise FormatError(path, "the batch report must be a .json file", exit_code=2)
-        path.write_text(json.dumps(self.as_dict(), indent=1) + "\n")
+        # Atomically: a report cut short (Ctrl-C twice, a full disk) would replace the
+        # last good one with half a JSON document.
+        from .formats import write_text_atomically
+
+        write_text_atomically(path, json.dumps(self.as_dict(), indent=1) + "\n")
 
 
 class BatchInterrupted(KeyboardInterrupt):

@@ -189,7 +189,9 @@ def run_accuracy(quick: bool = False, methods: list[str] | None = None,
     for case in cases(quick):
         rows.extend(run_case(case, methods))
     if json_path is not None:
-        Path(json_path).write_text(json.dumps(rows, indent=1))
+        from .formats import write_text_atomically
+
+        write_text_atomically(json_path, json.dumps(rows, indent=1))
     if plots_dir is not None:
         plot_summary(summarise(rows), Path(plots_dir))
     return rows

@@ -674,7 +674,9 @@ def bench_speed(runs: int, quick: bool, no_compare: bool, json_path: Path | None
     rows = run_speed(runs=runs, quick=quick, compare=not no_compare)
     click.echo(format_speed_table(rows))
     if json_path is not None:
-        json_path.write_text(json.dumps(rows_as_dicts(rows), indent=1))
+        from .formats import write_text_atomically
+
+        write_text_atomically(json_path, json.dumps(rows_as_dicts(rows), indent=1))
 
 
 @bench.command("accuracy")
@@ -726,7 +728,9 @@ def bench_paper(plots_dir: Path | None, quick: bool, markdown_path: Path | None)
     report = format_markdown(run_paper(quick, plots_dir))
     click.echo(report)
     if markdown_path is not None:
-        markdown_path.write_text(report)
+        from .formats import write_text_atomically
+
+        write_text_atomically(markdown_path, report)
 
 
 def run() -> None:

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FormatError, MocapfillError, ParameterError, named
+from .formats import atomic_output, write_text_atomically
 from .gaps import missing_runs
 from .motion import Motion, label_matches
 
@@ -109,9 +110,10 @@ def plot(original: Motion, repaired: Motion | None, path: Path,
             page = (f"<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>"
                     f"{html.escape(title)}</title></head><body>\n{buffer.getvalue()}\n"
                     f"</body></html>\n")
-            path.write_text(page)
+            write_text_atomically(path, page)
         else:
-            fig.savefig(path, dpi=110)
+            with atomic_output(path) as tmp:
+                fig.savefig(tmp, dpi=110, format=suffix.lstrip("."))
     finally:
         plt.close(fig)
     return [original.labels[j] for j in chosen]

@@ -123,7 +123,6 @@ def write_gaps_report(result, path: Path) -> None:
     else:
         raise FormatError(path, "gaps report must be .csv or .json", exit_code=2)
     # Atomically, like the repaired file: a failed write leaves no half-written report.
-    from .formats import atomic_output
+    from .formats import write_text_atomically
 
-    with atomic_output(path) as tmp:
-        Path(tmp).write_text(text, encoding="utf-8")
+    write_text_atomically(path, text)

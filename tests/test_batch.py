@@ -314,6 +314,28 @@ def test_a_write_that_fails_names_the_output_a_read_the_input_alone(tmp_path, mo
     assert reasons["b.npz"] and str(root) not in reasons["b.npz"]
 
 
+def test_a_report_cut_short_leaves_the_last_good_one(tmp_path, monkeypatch):
+    # A full disk (or a second Ctrl-C) while the report is written: the last good report
+    # stays, not half of a JSON document, and no temporary is left beside it.
+    import errno
+
+    path = tmp_path / "r.json"
+    batch.BatchReport().write_json(path)
+    before = path.read_text()
+    real = Path.write_text
+
+    def half_then_full(self, text, *args, **kwargs):
+        real(self, text[:len(text) // 2], *args, **kwargs)
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(Path, "write_text", half_then_full)
+    with pytest.raises(OSError):
+        batch.BatchReport(records=[batch.FileRecord("a.c3d", "o/a.c3d", "repaired")]
+                          ).write_json(path)
+    assert path.read_text() == before and json.loads(before)
+    assert [p.name for p in tmp_path.iterdir()] == ["r.json"]
+
+
 def test_a_skeleton_suffix_for_marker_inputs_fails_each_file_before_its_repair(
         clean_tree, tmp_path, monkeypatch):
     import mocapfill.pipeline

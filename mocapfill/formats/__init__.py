@@ -215,6 +215,15 @@ def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = Non
         raise
 
 
+def write_text_atomically(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` through :func:`atomic_output`: reports, tables
+    and pages are outputs too, and a write that fails (a full disk, Ctrl-C) must leave
+    the previous file, not half of a new one."""
+    path = Path(path)
+    with atomic_output(path) as tmp:
+        Path(tmp).write_text(text, encoding="utf-8")
+
+
 def _discard(tmp: str) -> None:
     if os.path.exists(tmp):
         os.unlink(tmp)
