@@ -157,7 +157,8 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
     dtype = iteration_dtype(dtype)
     PD = np.where(observed, D, 0.0)
     norm_PD = np.linalg.norm(PD) or 1.0
-    X = linear_fill(D, observed) if X0 is None else np.array(X0, dtype=np.float64)
+    X = linear_fill(D, observed) if X0 is None else np.asarray(X0, dtype=np.float64)
+    del X0          # read, never written: a caller that hands it over may see it freed
 
     # Initialisation chosen by the prototype (MODEL.md): factors from the SVD of X₀.
     if dtype == np.float32 and m <= n:
@@ -178,6 +179,7 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
     XV[:m] = X
     XV[m:] = Vts[:rank]
     X, V, W = XV[:m], XV[m:], WV[:m]
+    del Us, sv, Vts         # the start's float64 factors (d × n), not needed from here
     # The state is kept in a form that needs fewer passes over the m × n arrays than the
     # textbook variables (every numpy operation is a pass, and the passes were a third of
     # an iteration): P = PD − S in place of S, and Y₂ as η_C·C, where C is the clipped
@@ -380,9 +382,13 @@ def complete_lowrank(matrix: np.ndarray, observed: np.ndarray, *, rank: int | No
     # Solved on a few extra, wholly unobserved frames up to the DCT's next fast length.
     big, seen = padded_to_fast_length(matrix, observed)
     d = min(m, big.shape[1], max(MAX_FACTOR_WIDTH, r)) if d is None else d
-    X0 = low_rank_start(big, seen, rank=r)
+    # The warm start is handed over unnamed, so that trnn can let it go once its float32
+    # state is made (a full float64 matrix, 72 MB on 300 markers × 10,000 frames, held
+    # through every iteration before; CPython 3.11 and later pass a Python function its
+    # arguments' references, older ones keep them to the end of the call).
     result = trnn(big, seen, rank=r, d=d, lam=lam, mu=mu, rho=rho, eta0=eta0,
-                  eta_max=eta_max, tol=tol, max_iter=max_iter, X0=X0, dtype=dtype)
+                  eta_max=eta_max, tol=tol, max_iter=max_iter,
+                  X0=low_rank_start(big, seen, rank=r), dtype=dtype)
     groups = row_groups(observed)
     return join_ends(result.X[:, :n], matrix, observed,
                      GapSet(groups, interior_gaps(observed, groups)))
