@@ -370,9 +370,12 @@ def test_sigterm_and_sighup_stop_the_command_as_ctrl_c_does_and_end_it_so(clip_f
     if not hasattr(signal, stop):
         pytest.skip(f"no {stop} here")
     signum = getattr(signal, stop)
+    # With the signal's default action, whatever this test runs under: the command keeps
+    # a caller's SIG_IGN (a suite started with `nohup` ignores SIGHUP), and then waited.
     command = subprocess.Popen([sys.executable, "-c", _INTERRUPTIBLE, "o.npz"],
                                cwd=clip_files, text=True, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE)
+                               stderr=subprocess.PIPE,
+                               preexec_fn=lambda: signal.signal(signum, signal.SIG_DFL))
     try:
         _wait_for(clip_files / "started")
         command.send_signal(signum)
