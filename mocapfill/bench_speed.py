@@ -149,15 +149,11 @@ def iteration_floor_ms(m: int, n: int, d: int | None = None, dtype: type = np.fl
 
 def _floor_for(method: str, m: int, n: int) -> float:
     """The floor of the iteration ``method`` runs: the default ``trnn`` iterates in float32
-    on the clip padded to a fast DCT length with its factor width bounded, ``trnn-paper``
-    in float64 on the clip as is."""
+    on the clip padded to a fast DCT length, ``trnn-paper`` in float64 on the clip as is."""
     if method == "trnn":
         from .solvers._linalg import fast_length
-        from .solvers.trnn import MAX_FACTOR_WIDTH
 
-        padded = fast_length(n)
-        return iteration_floor_ms(m, padded, d=min(m, padded, MAX_FACTOR_WIDTH),
-                                  dtype=np.float32)
+        return iteration_floor_ms(m, fast_length(n), dtype=np.float32)
     return iteration_floor_ms(m, n)
 
 

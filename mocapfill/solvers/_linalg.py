@@ -249,9 +249,8 @@ def linear_fill(matrix: np.ndarray, observed: np.ndarray) -> np.ndarray:
     return out
 
 
-# Symmetric matrices up to this size are decomposed whole by numpy's eigh, as before the
-# factor width of TrNN was bounded (MAX_FACTOR_WIDTH): every clip of up to 50 markers
-# keeps its results bit for bit.
+# Symmetric matrices up to this size are decomposed whole by numpy's eigh, as before
+# :func:`leading_eigh`: every clip of up to 50 markers keeps its results bit for bit.
 WHOLE_EIGH_SIZE = 150
 
 
@@ -262,7 +261,8 @@ def leading_eigh(G: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     Above :data:`WHOLE_EIGH_SIZE` rows only the k wanted pairs are computed (LAPACK
     syevr): on the 900 rows of 300 markers, the top 15 in 0.05 s against 0.16 s for all
     900, which the low-rank warm start's alternating least squares asks for nine times
-    per TrNN run. Falls back to the whole decomposition where syevr fails.
+    per TrNN run (on clips with few complete frames). Falls back to the whole
+    decomposition where syevr fails.
     """
     m = G.shape[0]
     if m > WHOLE_EIGH_SIZE and 0 < k < m and G.dtype in (np.float32, np.float64):

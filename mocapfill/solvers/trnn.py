@@ -90,8 +90,8 @@ def _wide_svd(X: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray
     About 10× cheaper than LAPACK's SVD for mocap shapes (123 × 4500). Right vectors
     beyond the truncation rank are only used scaled by √σ (the factor R), which stays
     accurate even where σ is too small for the vector itself to be; the float32 fast path
-    uses it. On more than 150 rows only the k wanted ones are computed
-    (:func:`~mocapfill.solvers._linalg.leading_eigh`; 300 markers: 0.5 s less per run).
+    uses it. Where k < m on more than 150 rows (a factor width d given below m), only
+    the k wanted ones are computed (:func:`~mocapfill.solvers._linalg.leading_eigh`).
     """
     values, vectors = leading_eigh(X @ X.T, k)
     order = np.argsort(values)[::-1]
@@ -308,23 +308,6 @@ def complete_paper(matrix: np.ndarray, observed: np.ndarray, *, rank: int | None
 # ε of :func:`complete_lowrank` (see its notes).
 LOWRANK_TOL = 1e-4
 
-# Largest factor width d of :func:`complete_lowrank` (the default's TrNN candidate). MODEL.md
-# takes d = min(m, n), so that the factorisation bounds no rank; each iteration's three
-# large products then cost (m + r)·n·d, quadratic in the markers. Clips of up to 50
-# markers (m ≤ 150: every clip of the accuracy tables, 31–41 markers) keep d = m. Wider
-# clips are solved at d = 150, which is also more accurate there: the default method's
-# 3-D RMSE on clips of virtual markers (``scripts/virtual_markers.py``), d = m → 150:
-# 85_12 with 300 markers (seeds 0 / 1) 8.891 / 10.567 → 7.690 / 8.262 mm and 33 → 17 s;
-# 02_05 with 200 markers 3.240 / 11.737 → 2.671 / 11.889 mm; 85_12 with 100 markers
-# 12.772 → 11.004; 02_05 with 100 markers 5.173 → 5.252; with 60 and 80 markers (m =
-# 180, 240) the same or lower (85_12:60 17.044 → 16.882, 02_05:60 5.101 → 4.978,
-# 85_12:80:1 12.915 → 12.772, 02_05:80:1 17.509 → 17.499 mm); the four shared real clips
-# of 51–73 markers with the paper's gaps added (ml = 20 / 40 / 60, mr = 0.2, seeds 0–2)
-# within −0.3 … +0.6 % per cell, 10 of 16 cells lower; the speed benchmark's synthetic
-# 300 × 10,000 clip 24.773 → 24.742 mm and 79 → 39 s. The second session had measured the
-# converse on 41 markers: d = 60, 40 or 25 of 123 rows doubled some errors.
-MAX_FACTOR_WIDTH = 150
-
 # PCA models per gapped marker in the default's PCA candidate (``pca.complete``'s
 # ``max_models``), on a clip repaired whole and in the windows of a long clip. In the
 # windows of the bench's 30-minute synthetic clip (every marker gapped, the gaps
@@ -354,15 +337,13 @@ def complete_lowrank(matrix: np.ndarray, observed: np.ndarray, *, rank: int | No
 
     The global low-rank candidate of :func:`complete`: the warm start of
     :func:`~mocapfill.solvers.lowrank.low_rank_start` (subspace of the complete frames and
-    per-frame least squares, or alternating least squares), then Algorithm 1 with
-    d = min(m, 150), ρ = 1.2, η₀ = 0.05, ε = 1e−4 in float32, then the linear ramp that
-    makes the fill meet the observed samples on both sides of every interior gap.
+    per-frame least squares, or alternating least squares), then Algorithm 1 with d = m,
+    ρ = 1.2, η₀ = 0.05, ε = 1e−4 in float32, then the linear ramp that makes the fill
+    meet the observed samples on both sides of every interior gap.
 
     η₀ (3-D error of this fill alone, mean over WalkL_0001–0010): 1e−2 2.67 mm, 0.03 2.34,
     0.05 2.31, 0.1 2.54 (WalkL_0005 alone: 2.90, 2.46, 2.53, 4.50), 1 6.43; larger η₀ also
-    takes fewer iterations. The factor width d is at most :data:`MAX_FACTOR_WIDTH` (150)
-    unless given: clips of more than 50 markers get a bounded rank, cheaper and measured
-    more accurate there. float32 gives the same fills as float64 to within the spread
+    takes fewer iterations. float32 gives the same fills as float64 to within the spread
     of the iteration (η₀ = 0.1: WalkL_0005 4.498 vs 4.483 mm; 85_12 ml=40 9.6 vs 11.2 mm)
     at about 60 % of the time per iteration.
 
@@ -381,7 +362,6 @@ def complete_lowrank(matrix: np.ndarray, observed: np.ndarray, *, rank: int | No
     r = paper_rank(matrix, observed, rank)
     # Solved on a few extra, wholly unobserved frames up to the DCT's next fast length.
     big, seen = padded_to_fast_length(matrix, observed)
-    d = min(m, big.shape[1], max(MAX_FACTOR_WIDTH, r)) if d is None else d
     # The warm start is handed over unnamed, so that trnn can let it go once its float32
     # state is made (a full float64 matrix, 72 MB on 300 markers × 10,000 frames, held
     # through every iteration before; CPython 3.11 and later pass a Python function its
@@ -402,9 +382,9 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     observed samples at both ends of every gap (all but ``tsmc``, see below):
 
     - ``trnn``: :func:`complete_lowrank` — warm start from the subspace of the complete
-      frames (ALS without them), Algorithm 1 converged (d = min(m, 150), ρ = 1.2,
-      η₀ = 0.05, ε = 1e−4, float32), plus the end ramp. Alone: 1.7–3.7 mm on
-      WalkL_0001–0010, mean 2.3 (pca 2.1–6.1, mean 3.5).
+      frames (ALS without them), Algorithm 1 converged (d = m, ρ = 1.2, η₀ = 0.05,
+      ε = 1e−4, float32), plus the end ramp. Alone: 1.7–3.7 mm on WalkL_0001–0010, mean
+      2.3 (pca 2.1–6.1, mean 3.5).
     - ``spline``, ``quintic``, ``septic``: interpolating splines of degree 3, 5, 7 along
       time. Measured on 85_02 (smooth, 120 Hz): degree 5 halves the cubic's error at
       mr = 0.4 (0.077 vs 0.156 mm) and degree 7 cuts it 5× at ml = 20; on 02_05 both

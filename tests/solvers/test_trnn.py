@@ -9,7 +9,7 @@ from mocapfill.solvers._linalg import linear_fill, second_difference_matrix, tem
 from mocapfill.solvers.trnn import complete, trnn
 from tests.conftest import shared_file
 
-from ._synth import marker_gaps, scattered, smooth_low_rank
+from ._synth import scattered
 
 
 def test_dct_temporal_step_equals_dense_solve():
@@ -184,34 +184,6 @@ def test_padding_to_a_fast_dct_length_keeps_the_shape_and_observed_entries():
     assert out.shape == (m, n)
     np.testing.assert_array_equal(out[observed], X[observed])
     assert np.isfinite(out).all()
-
-
-def test_the_factor_width_is_bounded_on_clips_of_many_markers(monkeypatch):
-    # d = m up to 50 markers (every clip of the accuracy tables keeps MODEL.md's d), at
-    # most MAX_FACTOR_WIDTH above that, and never below a rank the caller asks for.
-    import mocapfill.solvers.trnn as module
-    from mocapfill.solvers.trnn import MAX_FACTOR_WIDTH, complete_lowrank
-
-    widths = []
-    real_trnn = module.trnn
-
-    def spy(D, observed, **kwargs):
-        result = real_trnn(D, observed, **kwargs)
-        widths.append((kwargs["d"], result.X.shape[0]))
-        return result
-
-    monkeypatch.setattr(module, "trnn", spy)
-    n = 240
-    for markers, rank, width in ((50, None, 150), (60, None, MAX_FACTOR_WIDTH),
-                                 (60, 170, 170)):
-        m = 3 * markers
-        matrix = smooth_low_rank(markers, m=m, n=n, r=6)
-        observed = marker_gaps(markers, m, n, 30, every=4)
-        out = complete_lowrank(np.where(observed, matrix, 0.0), observed, rank=rank,
-                               max_iter=3)
-        assert widths[-1] == (width, m)
-        np.testing.assert_array_equal(out[observed], matrix[observed])
-        assert np.isfinite(out).all()
 
 
 def test_default_completes_rows_that_are_not_markers():
