@@ -249,35 +249,6 @@ def linear_fill(matrix: np.ndarray, observed: np.ndarray) -> np.ndarray:
     return out
 
 
-# Symmetric matrices up to this size are decomposed whole by numpy's eigh, as before
-# :func:`leading_eigh`: every clip of up to 50 markers keeps its results bit for bit.
-WHOLE_EIGH_SIZE = 150
-
-
-def leading_eigh(G: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """At least the ``k`` largest eigenvalues of the symmetric G and their eigenvectors,
-    laid out as ``np.linalg.eigh`` lays out all of them (ascending, vectors as columns).
-
-    Above :data:`WHOLE_EIGH_SIZE` rows only the k wanted pairs are computed (LAPACK
-    syevr): on the 900 rows of 300 markers, the top 15 in 0.05 s against 0.16 s for all
-    900, which the low-rank warm start's alternating least squares asks for nine times
-    per TrNN run (on clips with few complete frames). Falls back to the whole
-    decomposition where syevr fails.
-    """
-    m = G.shape[0]
-    if m > WHOLE_EIGH_SIZE and 0 < k < m and G.dtype in (np.float32, np.float64):
-        from ._compiled import lapack
-
-        try:
-            values, vectors, found, _, info = lapack("syevr", G)(
-                G, compute_v=1, range="I", il=m - k + 1, iu=m)
-            if info == 0 and found == k:
-                return values[:k], vectors[:, :k]
-        except (TypeError, ValueError):     # another scipy's wrapper: the whole one below
-            pass
-    return np.linalg.eigh(G)
-
-
 def spd_inverse(A: np.ndarray) -> np.ndarray:
     """Inverse of a symmetric positive definite matrix by Cholesky (LAPACK potrf + potri).
 

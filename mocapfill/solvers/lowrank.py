@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._linalg import leading_eigh, linear_fill
+from ._linalg import linear_fill
 
 
 def _top_subspace(X: np.ndarray, rank: int) -> np.ndarray:
     # Eigenvectors of X Xᵀ (m × m) are X's left singular vectors: m ≪ n for mocap,
     # so this is far cheaper than an SVD of X.
-    _, vecs = leading_eigh(X @ X.T, rank)
+    _, vecs = np.linalg.eigh(X @ X.T)
     return vecs[:, ::-1][:, :rank]
 
 

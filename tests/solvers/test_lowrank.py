@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mocapfill.solvers._linalg import WHOLE_EIGH_SIZE, leading_eigh, linear_fill
+from mocapfill.solvers._linalg import linear_fill
 from mocapfill.solvers.lowrank import _top_subspace, low_rank_start, project_frames
 
 
@@ -53,24 +53,3 @@ def test_few_complete_frames_take_alternating_least_squares(missing_value):
     np.testing.assert_array_equal(out[observed], X[observed])
     start_error = np.abs(linear_fill(data, observed) - X)[~observed].max()
     assert np.abs(out - X)[~observed].max() < 1e-3 * start_error
-
-
-@pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_leading_eigh_gives_the_top_pairs_of_eigh(dtype):
-    rng = np.random.default_rng(3)
-    for m, k in ((WHOLE_EIGH_SIZE, 10), (WHOLE_EIGH_SIZE + 60, 15),
-                 (WHOLE_EIGH_SIZE + 60, 120)):
-        A = rng.standard_normal((m, 2 * m))
-        G = (A @ A.T).astype(dtype)
-        values, vectors = np.linalg.eigh(G)
-        top_values, top_vectors = leading_eigh(G, k)
-        # Small matrices are decomposed whole, as numpy does it (bit for bit).
-        expected = m if m <= WHOLE_EIGH_SIZE else k
-        assert top_values.shape == (expected,) and top_vectors.shape == (m, expected)
-        tol = 1e-4 if dtype == np.float32 else 1e-10
-        np.testing.assert_allclose(top_values[-k:], values[-k:], rtol=tol)
-        # The same eigenvectors up to sign, ascending like eigh's.
-        overlap = np.abs(np.sum(top_vectors[:, -k:] * vectors[:, -k:], axis=0))
-        np.testing.assert_allclose(overlap, 1.0, atol=10 * tol)
-        if m <= WHOLE_EIGH_SIZE:
-            np.testing.assert_array_equal(top_vectors, vectors)
