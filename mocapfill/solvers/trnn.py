@@ -176,7 +176,7 @@ def trnn(D: np.ndarray, observed: np.ndarray, *, rank: int, d: int | None = None
     XV[:m] = X
     XV[m:] = Vts[:rank]
     X, V, W = XV[:m], XV[m:], WV[:m]
-    del Us, sv, Vts         # the start's float64 factors (d × n), not needed from here
+    del Us, sv, Vts         # the start's float64 SVD (Vts: min(m, n) × n), not needed now
     # The state is kept in a form that needs fewer passes over the m × n arrays than the
     # textbook variables (every numpy operation is a pass, and the passes were a third of
     # an iteration): P = PD − S in place of S, and Y₂ as η_C·C, where C is the clipped
