@@ -1,13 +1,16 @@
 """Batch repair: discovery, mirrored outputs, resume, failures, report, exit codes, Dask."""
 from __future__ import annotations
 
+import importlib.util
 import json
 import multiprocessing
 import os
 import re
+import subprocess
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -112,13 +115,32 @@ def test_local_pool_mirrors_the_tree_and_reports_the_corrupt_file(tree, tmp_path
     assert {p: p.read_bytes() for p in files.values()} == before
 
 
+# The cluster and the command run in a child process, and this one never imports Dask: a
+# LocalCluster leaves threads in the process that started it (Dask's offload pool, which
+# lives as long as the process), where the blend's second pass is never forked, and
+# importing `distributed` makes every exception picklable (tblib), which changes what a
+# forked child can send back. tests/solvers/test_threads.py checks both after this file.
+_DASK_BATCH = """
+import subprocess, sys
+import distributed
+with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                              dashboard_address=None) as cluster:
+    done = subprocess.run([sys.executable, "-m", "mocapfill", "repair", *sys.argv[1:],
+                           "--scheduler", cluster.scheduler_address])
+sys.exit(done.returncode)
+"""
+
+
 def test_dask_local_cluster_runs_the_same_batch(tree, tmp_path):
-    distributed = pytest.importorskip("distributed")
+    if importlib.util.find_spec("distributed") is None:
+        pytest.skip("dask.distributed is not installed")
     root, files = tree
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
-        result = run(root, "-o", tmp_path / "out", "--scheduler", cluster.scheduler_address,
-                     "--report", tmp_path / "r.json", *LINEAR)
+    args = [str(a) for a in (root, "-o", tmp_path / "out", "--report", tmp_path / "r.json",
+                             *LINEAR)]
+    done = subprocess.run([sys.executable, "-c", _DASK_BATCH, *args], capture_output=True,
+                          text=True, timeout=300)
+    result = SimpleNamespace(exit_code=done.returncode, stderr=done.stderr,
+                             output=done.stdout + done.stderr)
     _assert_batch_outcome(root, tmp_path / "out", files, result, tmp_path / "r.json")
 
 
