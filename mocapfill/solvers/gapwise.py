@@ -138,8 +138,10 @@ def join_ends(fill: np.ndarray, matrix: np.ndarray, observed: np.ndarray,
     return out
 
 
-def held_short_runs(observed: np.ndarray, groups: np.ndarray, min_gap: int) -> np.ndarray:
-    """The mask with every missing run shorter than ``min_gap`` frames counted as observed.
+def held_short_runs(observed: np.ndarray, groups: np.ndarray, min_gap: int, *,
+                    ends: bool = True) -> np.ndarray:
+    """The mask with every missing run shorter than ``min_gap`` frames counted as observed
+    (with ``ends=False`` only interior runs, those with an observed sample on both sides).
 
     One pass over the whole mask (random occlusion gives tens of thousands of runs).
     """
@@ -150,6 +152,8 @@ def held_short_runs(observed: np.ndarray, groups: np.ndarray, min_gap: int) -> n
     group, start = np.nonzero(step == 1)
     stop = np.nonzero(step == -1)[1]                    # same row-major order as the starts
     short = stop - start < min_gap
+    if not ends:
+        short &= (start > 0) & (stop < n)
     marks = np.zeros((k, n + 1), dtype=np.int32)
     np.add.at(marks, (group[short], start[short]), 1)
     np.add.at(marks, (group[short], stop[short]), -1)
@@ -158,6 +162,31 @@ def held_short_runs(observed: np.ndarray, groups: np.ndarray, min_gap: int) -> n
     for column in range(groups.shape[1]):
         held[groups[:, column]] |= hold
     return held
+
+
+def short_runs_first(fill: Candidate, *, min_gap: int = MIN_MODEL_GAP) -> Candidate:
+    """``fill`` run with the short gaps filled first, as the long gaps' evidence.
+
+    Every interior missing run under ``min_gap`` frames is filled by the cubic spline
+    and counted as observed; ``fill`` then sees only the longer gaps, and the short ones
+    keep the spline's values. Flicker (markers lost for a frame or two, all through a
+    clip) otherwise takes away what the per-gap models need over a long gap: a donor or
+    predictor marker seen in every frame of it, complete frames for PCA.
+    """
+    from .interp import spline
+
+    def run(matrix: np.ndarray, observed: np.ndarray, **options) -> np.ndarray | None:
+        held = held_short_runs(observed, row_groups(observed), min_gap, ends=False)
+        short = held & ~observed
+        if not short.any():
+            return fill(matrix, observed, **options)
+        first = np.where(short, spline(matrix, observed), matrix)
+        out = fill(first, held, **options)
+        return None if out is None else np.where(short, first, out)
+
+    run.fills_gaps_alone = fill in FILLS_GAPS_ALONE
+    run.__wrapped__ = fill
+    return run
 
 
 # --------------------------------------------------------------------------- candidates
@@ -761,8 +790,8 @@ def _stand_in_errors(fill_fn: Candidate, blinded: np.ndarray, train: np.ndarray,
     """A candidate's errors (fill − data) on the hidden samples of the stand-ins, from its
     validation run: (samples, k) for the rows ``rows`` (samples, k) at ``frames``. A
     candidate of :data:`FILLS_GAPS_ALONE` fills the stand-ins' ``spans`` alone."""
-    fill = (fill_fn(blinded, train, only=spans) if fill_fn in FILLS_GAPS_ALONE
-            else fill_fn(blinded, train))
+    alone = fill_fn in FILLS_GAPS_ALONE or getattr(fill_fn, "fills_gaps_alone", False)
+    fill = fill_fn(blinded, train, only=spans) if alone else fill_fn(blinded, train)
     return fill[rows, frames[:, None]] - matrix[rows, frames[:, None]]
 
 

@@ -465,7 +465,17 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
     """
     from functools import partial
 
-    from .gapwise import Validation, blend, odd_spline_fill, regression_fill, rigid_fill, row_groups
+    from .gapwise import (
+        MIN_MODEL_GAP,
+        Validation,
+        blend,
+        held_short_runs,
+        odd_spline_fill,
+        regression_fill,
+        rigid_fill,
+        row_groups,
+        short_runs_first,
+    )
     from .gaussian import affordable as gaussian_affordable
     from .gaussian import gap_fill as gaussian_fill
     from .interp import spline
@@ -483,7 +493,9 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
         "spline": spline,
         "quintic": partial(odd_spline_fill, degree=5),
         "septic": partial(odd_spline_fill, degree=7),
-        "regression": regression_fill,
+        # The per-gap models (and PCA below) see the short gaps filled first: see
+        # gapwise.short_runs_first.
+        "regression": short_runs_first(regression_fill),
     }
     if gaussian_affordable(observed):
         candidates["gaussian"] = gaussian_fill
@@ -491,19 +503,21 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
     # marker); a channel matrix or a mask split within a marker gets the other fillers.
     markers = row_groups(observed).shape[1] == 3
     if markers:
-        candidates["rigid"] = rigid_fill
+        candidates["rigid"] = short_runs_first(rigid_fill)
     if tsmc_offered(observed):
         candidates["tsmc"] = tsmc_fill
-    if markers and observed.all(axis=0).sum() >= 60:
-        # Gløersen & Federolf's PCA fill needs complete frames; where the clip has them it
-        # is cheap and its errors are partly independent of TrNN's.
+    if markers and held_short_runs(observed, row_groups(observed), MIN_MODEL_GAP,
+                                   ends=False).all(axis=0).sum() >= 60:
+        # Gløersen & Federolf's PCA fill needs complete frames, counted with the short gaps
+        # filled (flicker leaves none otherwise); where the clip has them it is cheap and
+        # its errors are partly independent of TrNN's.
         from .pca import complete as pca
 
         # A budget of PCA models per marker keeps clips with gaps overlapping in many
         # combinations from costing one PCA each (validation judges what is left); the
         # windows of long clips get a smaller one (see WINDOW_PCA_MODELS).
-        candidates["pca"] = partial(pca, max_models=WINDOW_PCA_MODELS if skip_unweighted
-                                    else PCA_MODELS)
+        candidates["pca"] = short_runs_first(
+            partial(pca, max_models=WINDOW_PCA_MODELS if skip_unweighted else PCA_MODELS))
     names = tuple(candidates)
     # A lender with no evidence (a window without gaps, or too few for a stand-in) would
     # leave every gap to the default candidate: the window then validates itself.

@@ -624,3 +624,58 @@ def test_each_gap_takes_the_blend_of_its_own_weights_and_end_gaps_the_default(
                       validation=validation)
     assert (filled[~ends] == 2.0).all()
     np.testing.assert_array_equal(filled[ends], truth[ends])
+
+
+def test_short_gaps_filled_first_give_a_long_gap_its_rigid_donors():
+    # Six markers of one rigid body turning and moving smoothly; marker 0 loses 40 frames
+    # while each of the others flickers (1–2 frames missing) inside that stretch, so no
+    # marker is seen all through it and the rigid fill alone can only draw a line.
+    from mocapfill.solvers._linalg import linear_fill
+    from mocapfill.solvers.gapwise import rigid_fill, short_runs_first
+    from mocapfill.solvers.interp import spline
+
+    rng = np.random.default_rng(0)
+    n = 400
+    t = np.arange(n) / 120.0
+    angle = 0.8 * np.sin(2 * np.pi * 0.5 * t)
+    c, s = np.cos(angle), np.sin(angle)
+    body = rng.normal(scale=100.0, size=(6, 3))
+    x = c[None] * body[:, :1] - s[None] * body[:, 1:2] + 50 * t[None]
+    y = s[None] * body[:, :1] + c[None] * body[:, 1:2]
+    z = body[:, 2:3] + 20 * np.sin(t)[None]
+    matrix = np.stack([x, y, z], axis=1).reshape(18, n)
+    flicker = [(j, 150 + 7 * j, 150 + 7 * j + 1 + j % 2) for j in range(1, 6)]
+    observed = _mask(6, n, [(0, 150, 190), *flicker])
+    gap = (slice(0, 3), slice(150, 190))
+
+    alone = rigid_fill(matrix, observed)
+    np.testing.assert_array_equal(alone[gap], linear_fill(matrix, observed)[gap])
+    first = short_runs_first(rigid_fill)(matrix, observed)
+    assert np.abs(first[gap] - matrix[gap]).max() < 0.01 * np.abs(alone[gap] - matrix[gap]).max()
+    assert np.abs(first[gap] - matrix[gap]).max() < 0.05                  # mm, of ~100 mm moves
+    # The short gaps keep the cubic spline's fill; observed samples are untouched.
+    cubic = spline(matrix, observed)
+    for j, a, b in flicker:
+        np.testing.assert_array_equal(first[3 * j:3 * j + 3, a:b], cubic[3 * j:3 * j + 3, a:b])
+    np.testing.assert_array_equal(first[observed], matrix[observed])
+    # The validation run's request for some gaps alone (FILLS_GAPS_ALONE) passes through.
+    wrapped = short_runs_first(rigid_fill)
+    assert wrapped.fills_gaps_alone
+    some = wrapped(matrix, observed, only=frozenset([(0, 150, 190)]))
+    np.testing.assert_array_equal(some[gap], first[gap])
+    # Without short gaps the candidate runs as it is.
+    plain = _mask(6, n, [(0, 150, 190)])
+    np.testing.assert_array_equal(short_runs_first(rigid_fill)(matrix, plain),
+                                  rigid_fill(matrix, plain))
+
+
+def test_held_short_runs_leave_end_runs_missing_when_asked():
+    from mocapfill.solvers.gapwise import held_short_runs
+
+    observed = _mask(2, 30, [(0, 0, 2), (0, 10, 12), (0, 20, 27), (1, 28, 30)])
+    groups = row_groups(observed)
+    every = held_short_runs(observed, groups, 5)
+    inner = held_short_runs(observed, groups, 5, ends=False)
+    assert every[0, :2].all() and every[3, 28:].all() and every[0, 10:12].all()
+    assert not inner[0, :2].any() and not inner[3, 28:].any() and inner[0:3, 10:12].all()
+    assert not inner[0, 20:27].any() and not every[0, 20:27].any()        # 7 frames: long
