@@ -545,7 +545,8 @@ def _evidence_markers(motion):
 @click.argument("repaired_path", metavar="REPAIRED", type=click.Path(path_type=Path))
 @click.option("--gapped", "gapped_path", type=click.Path(path_type=Path), default=None,
               help="The gapped file that was repaired: its missing samples are scored. "
-                   "Default: the samples that differ between TRUTH and REPAIRED.")
+                   "Default: the samples that differ between TRUTH and REPAIRED by more "
+                   "than the two files' storage precision (decimals, float32, C3D scale).")
 @click.option("--json", "as_json", is_flag=True,
               help='Print {"rmse", "rmse_3d", "rmse_mm", "rmse_3d_mm", "missing_samples"}.')
 @_zero_option

@@ -208,6 +208,27 @@ def test_score_json_is_valid_json_when_nothing_is_scored(clip_files):
     assert payload["missing_samples"] == 0 and payload["rmse"] is None
 
 
+@pytest.mark.parametrize("truth_suffix", [".csv", ".trc"])
+def test_score_without_gapped_finds_the_fills_of_a_repair_stored_in_another_format(
+        clip_files, truth_suffix):
+    # A truth printed with 3 decimals and a repair stored as float32 C3D differ in every
+    # sample by rounding; only the filled samples are scored, as --gapped would score them.
+    d = clip_files
+    truth = formats.read(d / "truth.npz")
+    formats.write(truth, d / f"truth{truth_suffix}", decimals=3)
+    gapped = formats.read(d / "gapped.npz")
+    formats.write(gapped.with_positions(formats.read(d / f"truth{truth_suffix}").positions,
+                                        gapped.observed), d / "gapped.csv")
+    assert run("repair", d / "gapped.csv", d / "o.c3d", "--method", "linear").exit_code == 0
+    alone = run("score", d / f"truth{truth_suffix}", d / "o.c3d", "--json")
+    with_gapped = run("score", d / f"truth{truth_suffix}", d / "o.c3d", "--gapped",
+                      d / "gapped.csv", "--json")
+    assert alone.exit_code == 0, alone.output
+    scored, expected = json.loads(alone.stdout), json.loads(with_gapped.stdout)
+    assert scored["missing_samples"] + scored["unfilled_samples"] == 60 + 40
+    assert scored == pytest.approx(expected)
+
+
 def test_score_refuses_files_whose_markers_or_units_differ(clip_files):
     truth = formats.read(clip_files / "truth.npz")
     renamed = truth.replace(labels=("OTHER",) + tuple(truth.labels[1:]))
