@@ -555,14 +555,20 @@ def score(truth_path: Path, repaired_path: Path, gapped_path, as_json: bool,
     """Error of REPAIRED against TRUTH on the missing samples.
 
     rmse is the paper's RMSE over missing coordinates; rmse_3d the RMS 3-D marker error;
-    both in file units and in mm.
+    both in file units and in mm. No sample to score (none filled and observed in TRUTH)
+    is an error (exit 123), not an RMSE of nan.
     """
+    from .errors import MocapfillError
     from .metrics import score as compute
 
     truth = _read(truth_path, zero_is_missing)
     repaired = _read(repaired_path, zero_is_missing)
     gapped = None if gapped_path is None else _read(gapped_path, zero_is_missing)
     result = compute(truth, repaired, gapped)
+    if result.missing_samples == 0:
+        # An RMSE over no sample is no score: a swapped argument, the gapped file given as
+        # TRUTH (its gaps are where the fills are), a repair that filled nothing.
+        raise MocapfillError(_nothing_to_score(result, truth_path, repaired_path, gapped_path))
     if as_json:
         click.echo(json.dumps(result.as_dict()))
         return
@@ -573,6 +579,18 @@ def score(truth_path: Path, repaired_path: Path, gapped_path, as_json: bool,
                f"{result.missing_samples} missing samples"
                + (f"; {result.unfilled_samples} left unfilled" if result.unfilled_samples
                   else ""))
+
+
+def _nothing_to_score(result, truth_path: Path, repaired_path: Path,
+                      gapped_path: Path | None) -> str:
+    if result.unfilled_samples:
+        return (f"{repaired_path}: nothing to score: none of the {result.unfilled_samples} "
+                f"samples to score is filled")
+    if gapped_path is not None:
+        return (f"{gapped_path}: nothing to score: no sample missing here is observed in "
+                f"the truth {truth_path}")
+    return (f"{repaired_path}: nothing to score: no filled sample is observed in the truth "
+            f"{truth_path} (a sample counts as filled where it differs from the truth)")
 
 
 # ---------------------------------------------------------------- info

@@ -199,12 +199,35 @@ def test_gaps_report_never_replaces_the_input_or_the_output(clip_files, monkeypa
     assert sorted(p.name for p in clip_files.glob(".*")) == []    # no temporaries left
 
 
-def test_score_json_is_valid_json_when_nothing_is_scored(clip_files):
+@pytest.mark.parametrize("args, words", [
+    (["truth.npz", "truth.npz", "--json"], "truth.npz: nothing to score: no filled sample"),
+    # The gapped file as TRUTH: every sample the repair filled is missing in it.
+    (["gapped.npz", "o.npz"], "o.npz: nothing to score: no filled sample is observed in "
+                              "the truth gapped.npz"),
+    (["truth.npz", "o.npz", "--gapped", "truth.npz"], "truth.npz: nothing to score: no "
+                                                       "sample missing here"),
+    (["truth.npz", "gapped.npz", "--gapped", "gapped.npz"],
+     "gapped.npz: nothing to score: none of the 100 samples to score is filled"),
+])
+def test_score_with_nothing_to_score_is_a_failed_file_not_an_rmse_of_nan(clip_files,
+                                                                          monkeypatch,
+                                                                          args, words):
+    monkeypatch.chdir(clip_files)
+    assert run("repair", "gapped.npz", "o.npz").exit_code == 0
+    result = run("score", *args)
+    assert result.exit_code == 123
+    assert words in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert result.stdout == ""
+
+
+def test_score_as_dict_is_valid_json_when_nothing_is_scored(clip_files):
+    from mocapfill.metrics import score
+
     def no_nan(constant):
         raise AssertionError(f"{constant} is not JSON")
 
-    result = run("score", clip_files / "truth.npz", clip_files / "truth.npz", "--json")
-    payload = json.loads(result.stdout, parse_constant=no_nan)
+    truth = formats.read(clip_files / "truth.npz")
+    payload = json.loads(json.dumps(score(truth, truth).as_dict()), parse_constant=no_nan)
     assert payload["missing_samples"] == 0 and payload["rmse"] is None
 
 
