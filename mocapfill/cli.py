@@ -643,8 +643,10 @@ def plot(in_path: Path, repaired_path: Path | None, out_path: Path, markers: tup
 
     Needs the optional extra: pip install 'mocapfill[plot]'.
     """
+    from .formats import check_output_folder
     from .plot import plot as draw
 
+    check_output_folder(out_path)       # before reading, as repair and convert check OUT
     original = _read(in_path, zero_is_missing)
     repaired = None if repaired_path is None else _read(repaired_path, zero_is_missing)
     drawn = draw(original, repaired, out_path, markers=markers)

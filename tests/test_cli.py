@@ -126,6 +126,11 @@ def test_check_exits_1_when_gaps_are_left(clip_files):
     (["repair", "gapped.npz", "o.npz", "--max-gap", "inf"], 2, "--max-gap must be a finite"),
     (["repair", "gapped.npz", "./gapped.npz"], 2, "refusing to overwrite the input file"),
     (["plot", "empty.npz", "-o", "p.png"], 123, "empty.npz: nothing to draw"),
+    # The output folder is checked as repair and convert check it, not reported as the
+    # temporary file's OSError (exit 123).
+    (["plot", "gapped.npz", "-o", "nodir/p.png"], 2,
+     "nodir/p.png: output folder nodir does not exist"),
+    (["plot", "gapped.npz", "-o", "folder.png"], 2, "folder.png: is a folder"),
     (["repair", "gapped.npz", "o.npz", "--method", "bogus"], 2,
      "Invalid value for '--method'"),
     (["repair", "gapped.npz", "o.npz", "--gaps-report", "nodir/g.csv"], 2,
@@ -146,6 +151,7 @@ def test_bad_input_gives_one_line_error_and_exit_code(clip_files, monkeypatch, a
     (clip_files / "broken.npz").write_bytes(b"not a zip file at all")
     formats.write(smooth_clip(1, 3), clip_files / "one.npz")
     (clip_files / "folder.csv").mkdir()
+    (clip_files / "folder.png").mkdir()
     formats.write(with_gap(smooth_clip(100, 3), 1, 40, 45).replace(rate=0.0),
                   clip_files / "norate.npz")
     formats.write(Motion(np.zeros((5, 0, 3)), np.zeros((5, 0), bool), (), 100.0),
