@@ -64,8 +64,8 @@ class RepairOptions:
     markers, exclude
         Names or shell globs, matched with or without a label's ``Subject:`` prefix: only
         markers matching ``markers`` (all when empty) and not matching ``exclude`` are
-        filled. Every marker still serves as evidence. ``markers`` that match no marker,
-        or a pattern of ``exclude`` that matches none, is a ParameterError.
+        filled. Every marker still serves as evidence. ``markers``, or ``exclude``, that
+        match no marker of the clip (their patterns together) is a ParameterError.
     max_jump_mm
         Jump check. At each end of a gap that has observed samples, the fill's first
         sample is compared with the constant-velocity prediction from the last two observed
@@ -550,12 +550,12 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
                                    for label in motion.labels):
         # A typo would otherwise end in "0 gaps filled, N left (N not selected)".
         raise ParameterError(_matches_nothing(motion, "--markers", options.markers))
-    unmatched = [pattern for pattern in options.exclude
-                 if not any(label_matches(label, (pattern,)) for label in motion.labels)]
-    if unmatched:
-        # Each pattern on its own: a typo (--exclude LKNEE for LKNE), alone or beside
-        # patterns that match, would fill the marker the user meant to leave open.
-        raise ParameterError(_matches_nothing(motion, "--exclude", unmatched))
+    if options.exclude and not any(label_matches(label, options.exclude)
+                                   for label in motion.labels):
+        # A typo (--exclude LKNEE for LKNE) would fill the marker meant to stay open. The
+        # patterns together, as for --markers: a batch of several subjects may exclude
+        # 'Male:*' and 'Female:*', each file matching one of them.
+        raise ParameterError(_matches_nothing(motion, "--exclude", options.exclude))
     if options.space == "channels":
         return repair_channels(motion, options)
     started = time.perf_counter()
