@@ -230,7 +230,8 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
               help="Fill only these markers (repeatable; shell globs like 'L*'). All others "
                    "still serve as evidence.")
 @click.option("--exclude", multiple=True, metavar="NAME|GLOB",
-              help="Never fill these markers (repeatable; globs).")
+              help="Never fill these markers (repeatable; globs). Patterns that match no "
+                   "marker are an error, as for --markers.")
 @click.option("--gaps-report", type=_OutputFile(), default=None,
               help="One file: write one row per gap (marker, first/last frame, length in "
                    "frames and seconds, method, status) to FILE.csv or FILE.json.")
@@ -545,7 +546,8 @@ def _evidence_markers(motion):
 @click.argument("repaired_path", metavar="REPAIRED", type=click.Path(path_type=Path))
 @click.option("--gapped", "gapped_path", type=click.Path(path_type=Path), default=None,
               help="The gapped file that was repaired: its missing samples are scored. "
-                   "Default: the samples that differ between TRUTH and REPAIRED.")
+                   "Default: the samples that differ between TRUTH and REPAIRED by more "
+                   "than the two files' storage precision (decimals, float32, C3D scale).")
 @click.option("--json", "as_json", is_flag=True,
               help='Print {"rmse", "rmse_3d", "rmse_mm", "rmse_3d_mm", "missing_samples"}.')
 @_zero_option
@@ -554,14 +556,20 @@ def score(truth_path: Path, repaired_path: Path, gapped_path, as_json: bool,
     """Error of REPAIRED against TRUTH on the missing samples.
 
     rmse is the paper's RMSE over missing coordinates; rmse_3d the RMS 3-D marker error;
-    both in file units and in mm.
+    both in file units and in mm. No sample to score (none filled and observed in TRUTH)
+    is an error (exit 123), not an RMSE of nan.
     """
+    from .errors import MocapfillError
     from .metrics import score as compute
 
     truth = _read(truth_path, zero_is_missing)
     repaired = _read(repaired_path, zero_is_missing)
     gapped = None if gapped_path is None else _read(gapped_path, zero_is_missing)
     result = compute(truth, repaired, gapped)
+    if result.missing_samples == 0:
+        # An RMSE over no sample is no score: a swapped argument, the gapped file given as
+        # TRUTH (its gaps are where the fills are), a repair that filled nothing.
+        raise MocapfillError(_nothing_to_score(result, truth_path, repaired_path, gapped_path))
     if as_json:
         click.echo(json.dumps(result.as_dict()))
         return
@@ -572,6 +580,18 @@ def score(truth_path: Path, repaired_path: Path, gapped_path, as_json: bool,
                f"{result.missing_samples} missing samples"
                + (f"; {result.unfilled_samples} left unfilled" if result.unfilled_samples
                   else ""))
+
+
+def _nothing_to_score(result, truth_path: Path, repaired_path: Path,
+                      gapped_path: Path | None) -> str:
+    if result.unfilled_samples:
+        return (f"{repaired_path}: nothing to score: none of the {result.unfilled_samples} "
+                f"samples to score is filled")
+    if gapped_path is not None:
+        return (f"{gapped_path}: nothing to score: no sample missing here is observed in "
+                f"the truth {truth_path}")
+    return (f"{repaired_path}: nothing to score: no filled sample is observed in the truth "
+            f"{truth_path} (a sample counts as filled where it differs from the truth)")
 
 
 # ---------------------------------------------------------------- info
@@ -624,8 +644,10 @@ def plot(in_path: Path, repaired_path: Path | None, out_path: Path, markers: tup
 
     Needs the optional extra: pip install 'mocapfill[plot]'.
     """
+    from .formats import check_output_folder
     from .plot import plot as draw
 
+    check_output_folder(out_path)       # before reading, as repair and convert check OUT
     original = _read(in_path, zero_is_missing)
     repaired = None if repaired_path is None else _read(repaired_path, zero_is_missing)
     drawn = draw(original, repaired, out_path, markers=markers)

@@ -64,7 +64,8 @@ class RepairOptions:
     markers, exclude
         Names or shell globs, matched with or without a label's ``Subject:`` prefix: only
         markers matching ``markers`` (all when empty) and not matching ``exclude`` are
-        filled. Every marker still serves as evidence.
+        filled. Every marker still serves as evidence. ``markers``, or ``exclude``, that
+        match no marker of the clip (their patterns together) is a ParameterError.
     max_jump_mm
         Jump check. At each end of a gap that has observed samples, the fill's first
         sample is compared with the constant-velocity prediction from the last two observed
@@ -516,6 +517,14 @@ def _jumping(positions: np.ndarray, motion: Motion, gaps: list[Gap],
             for gap, jump_moving, jump_still in zip(gaps, moving, still)]
 
 
+def _matches_nothing(motion: Motion, option: str, patterns: list[str] | tuple[str, ...]
+                     ) -> str:
+    """The error for --markers or --exclude patterns that select no marker of the clip."""
+    shown = ", ".join(motion.labels[:8]) + (", ..." if motion.n_markers > 8 else "")
+    return (f"{named(motion.path)}{option} {' '.join(patterns)} matches no marker "
+            f"(the clip has {shown})")
+
+
 @single_threaded()
 def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult:
     """Fill the gaps of a clip (BLAS on one thread meanwhile, see :mod:`mocapfill._blas`).
@@ -540,9 +549,13 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     if options.markers and not any(label_matches(label, options.markers)
                                    for label in motion.labels):
         # A typo would otherwise end in "0 gaps filled, N left (N not selected)".
-        shown = ", ".join(motion.labels[:8]) + (", ..." if motion.n_markers > 8 else "")
-        raise ParameterError(f"{named(motion.path)}--markers {' '.join(options.markers)} "
-                             f"matches no marker (the clip has {shown})")
+        raise ParameterError(_matches_nothing(motion, "--markers", options.markers))
+    if options.exclude and not any(label_matches(label, options.exclude)
+                                   for label in motion.labels):
+        # A typo (--exclude LKNEE for LKNE) would fill the marker meant to stay open. The
+        # patterns together, as for --markers: a batch of several subjects may exclude
+        # 'Male:*' and 'Female:*', each file matching one of them.
+        raise ParameterError(_matches_nothing(motion, "--exclude", options.exclude))
     if options.space == "channels":
         return repair_channels(motion, options)
     started = time.perf_counter()

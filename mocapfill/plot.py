@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FormatError, MocapfillError, ParameterError, named
-from .formats import atomic_output, write_text_atomically
+from .formats import atomic_output, check_output_folder, write_text_atomically
 from .gaps import missing_runs
 from .motion import Motion, label_matches
 
@@ -62,6 +62,7 @@ def plot(original: Motion, repaired: Motion | None, path: Path,
     suffix = path.suffix.lower()
     if suffix not in SUFFIXES:
         raise FormatError(path, f"plot output must be one of {', '.join(SUFFIXES)}", exit_code=2)
+    check_output_folder(path)
     if original.n_markers == 0 or original.n_frames == 0:
         raise MocapfillError(f"{named(original.path)}nothing to draw: the clip has "
                              f"{original.n_markers} markers and {original.n_frames} frames")

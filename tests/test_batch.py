@@ -180,6 +180,24 @@ def test_an_empty_clip_fails_alone_and_in_a_batch_with_the_same_reason(tmp_path,
     assert record["reason"] in alone.stderr         # the single file's one line
 
 
+@pytest.mark.parametrize("option", ["--markers", "--exclude"])
+def test_a_marker_pattern_that_matches_nothing_fails_alone_exit_2_and_each_file_in_a_batch(
+        tmp_path, option):
+    source = tmp_path / "in" / "trial.npz"
+    source.parent.mkdir()
+    formats.write(with_gap(smooth_clip(100, 4), 1, 40, 50), source)
+    alone = run(source, tmp_path / "alone.npz", option, "MK1", *LINEAR)   # MK01 misspelt
+    assert alone.exit_code == 2 and not (tmp_path / "alone.npz").exists()
+    assert f"{option} MK1 matches no marker" in alone.stderr
+    report_path = tmp_path / "report.json"
+    many = run(tmp_path / "in", "-o", tmp_path / "out", "-j", "1", "--report", report_path,
+               option, "MK1", *LINEAR)
+    assert many.exit_code == 123, many.output
+    record, = _report(report_path)["files"]
+    assert record["status"] == "failed" and f"{option} MK1 matches no marker" in record["reason"]
+    assert not (tmp_path / "out" / "trial.npz").exists()
+
+
 def test_rerun_skips_up_to_date_outputs_and_redoes_changed_inputs(clean_tree, tmp_path):
     root, files = clean_tree
     out = tmp_path / "out"

@@ -126,6 +126,11 @@ def test_check_exits_1_when_gaps_are_left(clip_files):
     (["repair", "gapped.npz", "o.npz", "--max-gap", "inf"], 2, "--max-gap must be a finite"),
     (["repair", "gapped.npz", "./gapped.npz"], 2, "refusing to overwrite the input file"),
     (["plot", "empty.npz", "-o", "p.png"], 123, "empty.npz: nothing to draw"),
+    # The output folder is checked as repair and convert check it, not reported as the
+    # temporary file's OSError (exit 123).
+    (["plot", "gapped.npz", "-o", "nodir/p.png"], 2,
+     "nodir/p.png: output folder nodir does not exist"),
+    (["plot", "gapped.npz", "-o", "folder.png"], 2, "folder.png: is a folder"),
     (["repair", "gapped.npz", "o.npz", "--method", "bogus"], 2,
      "Invalid value for '--method'"),
     (["repair", "gapped.npz", "o.npz", "--gaps-report", "nodir/g.csv"], 2,
@@ -146,6 +151,7 @@ def test_bad_input_gives_one_line_error_and_exit_code(clip_files, monkeypatch, a
     (clip_files / "broken.npz").write_bytes(b"not a zip file at all")
     formats.write(smooth_clip(1, 3), clip_files / "one.npz")
     (clip_files / "folder.csv").mkdir()
+    (clip_files / "folder.png").mkdir()
     formats.write(with_gap(smooth_clip(100, 3), 1, 40, 45).replace(rate=0.0),
                   clip_files / "norate.npz")
     formats.write(Motion(np.zeros((5, 0, 3)), np.zeros((5, 0), bool), (), 100.0),
@@ -199,13 +205,57 @@ def test_gaps_report_never_replaces_the_input_or_the_output(clip_files, monkeypa
     assert sorted(p.name for p in clip_files.glob(".*")) == []    # no temporaries left
 
 
-def test_score_json_is_valid_json_when_nothing_is_scored(clip_files):
+@pytest.mark.parametrize("args, words", [
+    (["truth.npz", "truth.npz", "--json"], "truth.npz: nothing to score: no filled sample"),
+    # The gapped file as TRUTH: every sample the repair filled is missing in it.
+    (["gapped.npz", "o.npz"], "o.npz: nothing to score: no filled sample is observed in "
+                              "the truth gapped.npz"),
+    (["truth.npz", "o.npz", "--gapped", "truth.npz"], "truth.npz: nothing to score: no "
+                                                       "sample missing here"),
+    (["truth.npz", "gapped.npz", "--gapped", "gapped.npz"],
+     "gapped.npz: nothing to score: none of the 100 samples to score is filled"),
+])
+def test_score_with_nothing_to_score_is_a_failed_file_not_an_rmse_of_nan(clip_files,
+                                                                          monkeypatch,
+                                                                          args, words):
+    monkeypatch.chdir(clip_files)
+    assert run("repair", "gapped.npz", "o.npz").exit_code == 0
+    result = run("score", *args)
+    assert result.exit_code == 123
+    assert words in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert result.stdout == ""
+
+
+def test_score_as_dict_is_valid_json_when_nothing_is_scored(clip_files):
+    from mocapfill.metrics import score
+
     def no_nan(constant):
         raise AssertionError(f"{constant} is not JSON")
 
-    result = run("score", clip_files / "truth.npz", clip_files / "truth.npz", "--json")
-    payload = json.loads(result.stdout, parse_constant=no_nan)
+    truth = formats.read(clip_files / "truth.npz")
+    payload = json.loads(json.dumps(score(truth, truth).as_dict()), parse_constant=no_nan)
     assert payload["missing_samples"] == 0 and payload["rmse"] is None
+
+
+@pytest.mark.parametrize("truth_suffix", [".csv", ".trc"])
+def test_score_without_gapped_finds_the_fills_of_a_repair_stored_in_another_format(
+        clip_files, truth_suffix):
+    # A truth printed with 3 decimals and a repair stored as float32 C3D differ in every
+    # sample by rounding; only the filled samples are scored, as --gapped would score them.
+    d = clip_files
+    truth = formats.read(d / "truth.npz")
+    formats.write(truth, d / f"truth{truth_suffix}", decimals=3)
+    gapped = formats.read(d / "gapped.npz")
+    formats.write(gapped.with_positions(formats.read(d / f"truth{truth_suffix}").positions,
+                                        gapped.observed), d / "gapped.csv")
+    assert run("repair", d / "gapped.csv", d / "o.c3d", "--method", "linear").exit_code == 0
+    alone = run("score", d / f"truth{truth_suffix}", d / "o.c3d", "--json")
+    with_gapped = run("score", d / f"truth{truth_suffix}", d / "o.c3d", "--gapped",
+                      d / "gapped.csv", "--json")
+    assert alone.exit_code == 0, alone.output
+    scored, expected = json.loads(alone.stdout), json.loads(with_gapped.stdout)
+    assert scored["missing_samples"] + scored["unfilled_samples"] == 60 + 40
+    assert scored == pytest.approx(expected)
 
 
 def test_score_refuses_files_whose_markers_or_units_differ(clip_files):

@@ -104,6 +104,12 @@ def test_markers_and_exclude_restrict_what_is_filled():
     with pytest.raises(ParameterError, match=r"--markers LASI MK9\* matches no marker "
                                              r"\(the clip has MK00, MK01, "):
         repair(gapped, RepairOptions(markers=("LASI", "MK9*")))
+    # So are --exclude patterns that match nothing (a typo would fill the marker); beside
+    # one that matches, as with --markers, they pass (a batch's subjects differ).
+    with pytest.raises(ParameterError, match=r"--exclude MK2 MK9\* matches no marker "
+                                             r"\(the clip has MK00, MK01, "):
+        repair(gapped, RepairOptions(exclude=("MK2", "MK9*")))
+    repair(gapped, RepairOptions(exclude=("MK0[12]", "Female:*")))
 
 
 def test_non_marker_points_are_never_filled():

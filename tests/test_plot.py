@@ -34,3 +34,12 @@ def test_plot_rejects_unknown_suffix_and_unmatched_marker(tmp_path, clips):
         plot(*clips, tmp_path / "p.jpg")
     with pytest.raises(ParameterError):
         plot(*clips, tmp_path / "p.png", markers=("NOPE",))
+
+
+def test_plot_refuses_a_missing_folder_or_a_folder_as_output(tmp_path, clips):
+    (tmp_path / "folder.png").mkdir()
+    with pytest.raises(FormatError, match="output folder .*nodir does not exist"):
+        plot(*clips, tmp_path / "nodir" / "p.png")
+    with pytest.raises(FormatError, match="is a folder"):
+        plot(*clips, tmp_path / "folder.png")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["folder.png"]   # no temporaries

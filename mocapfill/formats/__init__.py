@@ -113,16 +113,24 @@ def check_output(path: str | os.PathLike, input_path: str | os.PathLike) -> None
     for a mistyped OUT. Raises FormatError naming ``path``."""
     path, input_path = Path(path), Path(input_path)
     format_module(path, output=True)
-    directory = path.parent if str(path.parent) else Path(".")
-    if not directory.is_dir():
-        raise FormatError(path, f"output folder {directory} does not exist", exit_code=2)
-    if path.is_dir():
-        raise FormatError(path, "is a folder; name the output file", exit_code=2)
+    check_output_folder(path)
     if path.exists() and input_path.exists() and path.resolve() == input_path.resolve():
         raise FormatError(path, "refusing to overwrite the input file", exit_code=2)
     problem = skeleton_output_problem(path, input_path)
     if problem is not None:
         raise FormatError(path, problem, exit_code=2)
+
+
+def check_output_folder(path: str | os.PathLike) -> None:
+    """That ``path`` can be created as a file: its folder exists and it is not a folder
+    itself (the checks of :func:`check_output` that hold for any output, a plot too).
+    Raises FormatError naming ``path`` (exit 2), not the temporary file's OSError."""
+    path = Path(path)
+    directory = path.parent if str(path.parent) else Path(".")
+    if not directory.is_dir():
+        raise FormatError(path, f"output folder {directory} does not exist", exit_code=2)
+    if path.is_dir():
+        raise FormatError(path, "is a folder; name the output file", exit_code=2)
 
 
 def skeleton_output_problem(path: str | os.PathLike, input_path: str | os.PathLike
