@@ -224,13 +224,18 @@ def write(motion: Motion, path: Path, *, decimals: int | None = None,
     FormatError
         The clip has no markers (a TRC naming none cannot be read back).
     """
-    source = motion.source
-    if isinstance(source, TextSource) and source.kind == "trc" and source.fits(motion):
-        write_lines(path, patched_lines(source, motion, decimals))
+    if patches(motion):
+        write_lines(path, patched_lines(motion.source, motion, decimals))
     elif motion.n_markers == 0:
         raise FormatError(path, "the clip has no markers; a TRC file needs at least one")
     else:
         write_lines(path, new_file_lines(motion, _target_name(Path(path)), decimals))
+
+
+def patches(motion: Motion) -> bool:
+    """Whether :func:`write` writes ``motion`` as a patched copy of the TRC it was read from."""
+    source = motion.source
+    return isinstance(source, TextSource) and source.kind == "trc" and source.fits(motion)
 
 
 def new_file_lines(motion: Motion, name: str, decimals: int | None = None) -> list[str]:
