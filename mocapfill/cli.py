@@ -297,7 +297,7 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
 
     with _WindowProgress() as progress, reporting_windows(progress):
         result = run_repair(motion, options(_parse_max_gap(max_gap, motion.rate, in_path), space))
-    formats.write(result.motion, out_path)
+    _write_noting(result.motion, out_path)
     if gaps_report is not None:
         from .report import write_gaps_report
 
@@ -496,7 +496,7 @@ def simulate(in_path: Path, out_path: Path, mr, ml, n_markers, seed, zero_is_mis
     simulate = simulate_channel_gaps if formats.same_skeleton_format(in_path, out_path) \
         else simulate_gaps
     gapped = simulate(motion, mr=mr, ml=ml, markers=n_markers, seed=seed)
-    formats.write(gapped, out_path)
+    _write_noting(gapped, out_path)
     removed = int((motion.observed & ~gapped.observed).sum())
     click.echo(f"{in_path} -> {out_path}: {removed} samples removed", err=True)
 
@@ -667,9 +667,20 @@ def convert(in_path: Path, out_path: Path, zero_is_missing: str) -> None:
 
     formats.check_output(out_path, in_path)
     motion = _read(in_path, zero_is_missing)
-    formats.write(motion, out_path)
-    click.echo(f"{in_path} -> {out_path}: {motion.n_markers} markers, {motion.n_frames} frames",
-               err=True)
+    written = _write_noting(motion, out_path)
+    click.echo(f"{in_path} -> {out_path}: {written.n_markers} markers, {written.n_frames} "
+               "frames", err=True)
+
+
+def _write_noting(motion, out_path: Path):
+    """Write OUT and show, as reader notes are shown, what its format could not hold as
+    the clip had it (model outputs left out of a TRC, lengths converted to mm); the clip
+    as written."""
+    from . import formats
+
+    for note in formats.write(motion, out_path):
+        click.echo(f"mocapfill: note: {out_path}: {note}", err=True)
+    return formats.for_output(motion, out_path)[0]
 
 
 # ---------------------------------------------------------------- bench

@@ -660,3 +660,19 @@ def test_the_command_exits_at_once_unless_another_thread_runs(other):
                           text=True, timeout=60)
     assert done.returncode == 0 and "version" in done.stdout
     assert ("finalised" in done.stdout) == (other == "thread")
+
+
+def test_convert_to_trc_leaves_points_that_are_not_markers_out_and_says_so(clip_files):
+    clip = formats.read(clip_files / "gapped.npz")
+    fillable = np.ones(clip.n_markers, bool)
+    fillable[[2, 5]] = False                    # model outputs, as a C3D reader marks them
+    formats.write(clip.replace(fillable=fillable), clip_files / "model.npz")
+    result = run("convert", clip_files / "model.npz", clip_files / "out.trc")
+    assert result.exit_code == 0, result.output
+    note = (f"mocapfill: note: {clip_files / 'out.trc'}: 2 point(s) that are not marker "
+            "trajectories")
+    assert result.stderr.splitlines()[0].startswith(note)
+    assert f"{clip.n_markers - 2} markers" in result.stderr.splitlines()[-1]
+    written = formats.read(clip_files / "out.trc")
+    assert written.labels == tuple(label for j, label in enumerate(clip.labels)
+                                   if j not in (2, 5))

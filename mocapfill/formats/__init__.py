@@ -8,6 +8,13 @@ makes every output atomic: the module writes a temporary file beside the target,
 renamed over it only when complete. Readers may return a clip of no frames (a BVH with
 ``Frames: 0``, an empty NPZ) so that ``info`` can report it; ``write`` refuses one.
 
+A new file (not a patch) of a position format is written as other tools read that format
+(:func:`for_output`): a TRC or CSV holds marker trajectories only, so points that are not
+markers (C3D model outputs: angles, forces, moments, powers) are left out; a TRC, CSV or
+C3D states a length unit, so a unit with a known length that is not a plain unit name
+(``in/0.45``, CMU AMC lengths) is converted to mm. ``write`` returns one note per change,
+and one for a unit it cannot convert (a BVH's ``unknown``), for the caller to show.
+
 A skeleton format (BVH, ASF/AMC) may also expose ``channels(motion)`` and
 ``with_channels(motion, values, observed)`` so a repair can work in channel space and
 write back into the original motion lines.
@@ -22,7 +29,10 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
+
 from ..errors import FormatError, ParameterError
+from ..metrics import MM_PER_UNIT, mm_per_unit
 from ..motion import Motion
 
 # Suffix -> module. Plain dict, no global mutable plugin state.
@@ -38,6 +48,11 @@ FORMATS: dict[str, str] = {
 
 # Formats that store marker positions (valid targets of `convert`).
 POSITION_FORMATS = (".c3d", ".trc", ".csv", ".txt", ".npz")
+
+# Formats whose new files hold marker trajectories only (TRC for OpenSim, a marker CSV), and
+# those whose new files state a length unit other tools read.
+MARKER_ONLY_FORMATS = (".trc", ".csv", ".txt")
+UNIT_FORMATS = (".c3d", ".trc", ".csv", ".txt")
 
 # Known suffixes we do not read, with what to do instead.
 WRONG_SUFFIXES: dict[str, str] = {
@@ -150,13 +165,69 @@ def skeleton_input_needed(suffix: str) -> str:
             "joint angles); write .c3d/.trc/.csv instead")
 
 
+def for_output(motion: Motion, path: str | os.PathLike) -> tuple[Motion, tuple[str, ...]]:
+    """The clip as a new file of ``path``'s format holds it, and a note on each change.
+
+    A writer that patches the clip's own source file gets it unchanged (a C3D keeps its
+    model outputs, a TRC its header). A new TRC or CSV leaves out the points that are not
+    marker trajectories (``fillable`` False: C3D model outputs): Vicon and OpenSim users
+    read a TRC as markers only, and a later repair would fill those angles and moments and
+    take them as evidence for the markers. A new TRC, CSV or C3D file gets lengths in mm
+    when the clip's unit has a known length but is not a plain unit name (``in/0.45``, the
+    CMU AMC unit: a TRC ``Units`` or C3D ``POINT:UNITS`` no other tool reads); a unit with
+    no known length (a BVH's ``unknown``) is kept, with a note saying so. NPZ keeps all.
+
+    Parameters
+    ----------
+    motion
+        The clip to write.
+    path
+        The output file; its suffix picks the format.
+
+    Returns
+    -------
+    motion, notes
+        The clip to hand the format's writer, and readable notes (empty when unchanged).
+    """
+    suffix = Path(path).suffix.lower()
+    module = format_module(path, output=True)
+    if suffix not in UNIT_FORMATS or module.patches(motion):
+        return motion, ()
+    notes = []
+    if suffix in MARKER_ONLY_FORMATS and not motion.fillable.all():
+        keep = np.flatnonzero(motion.fillable)
+        left_out = motion.n_markers - keep.size
+        notes.append(f"{left_out} point(s) that are not marker trajectories (model outputs: "
+                     f"angles, forces, moments, powers) left out; a {suffix} file holds "
+                     "markers only (write .c3d or .npz to keep them)")
+        motion = motion.replace(positions=motion.positions[:, keep],
+                                observed=motion.observed[:, keep],
+                                labels=tuple(motion.labels[j] for j in keep),
+                                fillable=motion.fillable[keep])
+    units = motion.units.strip()
+    factor = mm_per_unit(units)
+    if factor is None:
+        notes.append(f"length unit {units!r} is not known: positions written as they are, "
+                     f"with the unit {units!r}, which other tools do not read as a length")
+    elif units.lower() not in MM_PER_UNIT:
+        notes.append(f"lengths in {units} converted to mm (1 {units} = {factor:.6g} mm)")
+        motion = motion.replace(positions=motion.positions * factor, units="mm")
+    return motion, tuple(notes)
+
+
 def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = None,
-          **options) -> None:
+          **options) -> tuple[str, ...]:
     """Write a motion file atomically; the suffix picks the format.
 
     ``final_path`` is where the file will end up when ``path`` is a temporary name the
     caller renames (an in-place repair): files it needs beside it (an AMC's skeleton) are
     checked and put there, not beside the temporary name.
+
+    Returns
+    -------
+    tuple of str
+        Notes on what a new file of this format could not hold as the clip had it (see
+        :func:`for_output`), for the caller to show; empty when nothing changed.
 
     Raises
     ------
@@ -172,6 +243,7 @@ def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = 
         raise FormatError(path, "refusing to overwrite the input file", exit_code=2)
     if motion.n_frames == 0:
         raise FormatError(path, "refusing to write a clip with no frames")
+    motion, notes = for_output(motion, path)
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
         raise FormatError(path, f"output folder {directory} does not exist")
@@ -198,6 +270,7 @@ def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = 
         # The error names the temporary file (".out.c3d.x1y2.tmp: Is a directory"); the
         # user knows the output's name.
         raise FormatError(path, exc.strerror or str(exc)) from None
+    return notes
 
 
 @contextmanager

@@ -60,6 +60,11 @@ class TextSource:
         Frame count the header declares (TRC ``NumFrames``), None when it declares none.
     truncated_rows_read
         Rows read from a file holding fewer frames than it declares; None when complete.
+    cut_row
+        Index into ``lines`` of the data row the file ends inside when that row looks cut
+        short (see :func:`find_cut_row`): its last cell is not read. -1 when there is none.
+    width
+        Cells a complete data row holds (:class:`RowWidth`); 0 when unknown.
     notes
         Readable remarks on what the reader tolerated (header counts that disagree with
         the data, ignored columns, a truncated file), for a report to show.
@@ -76,6 +81,8 @@ class TextSource:
     declared_frames: int | None = None
     truncated_rows_read: int | None = None
     notes: tuple[str, ...] = ()
+    cut_row: int = -1
+    width: int = 0
 
     @property
     def truncated(self) -> bool:
@@ -190,18 +197,18 @@ def parse_number(text: str) -> float:
     return float(text)
 
 
-def row_cells(lines: Sequence[str], index: int, delimiter: str) -> tuple[list[str], bool]:
-    """Raw cells of a data row, and whether the file ends inside that row.
+def row_cells(lines: Sequence[str], index: int, delimiter: str,
+              cut_row: int = -1) -> tuple[list[str], bool]:
+    """Raw cells of a data row, and whether it is the row ``cut_row`` the file may have
+    been cut short inside (see :func:`find_cut_row`).
 
-    A file that does not end with a line ending may have been cut short (an interrupted
-    copy or download) anywhere in its last line, a number included (``956.933`` cut to
-    ``956``). The last cell of such a row is therefore left out of the returned cells:
-    readers take it as missing, and may accept the row holding fewer cells than a
-    complete one.
+    The last cell of the cut row is left out of the returned cells: it may be a number cut
+    short (``956.933`` cut to ``956``), so readers take it as missing, and may accept the
+    row holding fewer cells than a complete one.
     """
-    body, ending = split_ending(lines[index])
+    body = split_ending(lines[index])[0]
     cells = split_cells(body, delimiter)
-    cut = not ending and index == len(lines) - 1
+    cut = index == cut_row
     return (cells[:-1] if cut else cells), cut
 
 
@@ -211,16 +218,87 @@ def ends_inside_row(lines: Sequence[str], row_lines: np.ndarray) -> bool:
             and not split_ending(lines[-1])[1])
 
 
-#: Note a reader adds when the file ends inside its last data row.
-CUT_ROW_NOTE = ("the file ends inside its last row (no final line ending): that row's last "
-                "cell is not read (it may be cut short)")
+def find_cut_row(lines: Sequence[str], row_lines: np.ndarray, delimiter: str,
+                 width: RowWidth, columns: np.ndarray) -> int:
+    """The line index of the last data row when the file may have been cut short inside
+    it, else -1.
+
+    Many tools end a file without a line ending, so a last row without one is read whole
+    (its last cell is data, which a patch keeps byte for byte) unless it shows a cut: it
+    holds fewer cells than a complete row, or its last cell is not a number (``1.5e``,
+    ``-``), or the cell is printed less precisely than the same column in the other rows
+    and the other coordinates of its marker in the row (``31.000`` cut to ``31``).
+
+    "As precisely" has two readings, and a whole cell passes either: as many decimals as
+    any of those cells (files printed with fixed decimals), or as many significant digits
+    as any cell of its column and as the fewest of its marker's other coordinates, with
+    no fewer decimals than the fewest of its column (files printed with ``%g``, whose
+    decimals follow the magnitude; the same value cut short loses digits both ways). A
+    column no other row holds a number in gives nothing to compare with: the cell is
+    taken as cut. Reading a cut number as data would put a wrong value among the
+    observations, so doubt goes that way: a ``%g`` value that happens to end in zeros
+    (``954.3`` for 954.300) reads as cut and missing.
+
+    Parameters
+    ----------
+    lines, row_lines, delimiter, columns
+        As in :class:`TextSource`.
+    width
+        The cells a complete row holds.
+    """
+    if not ends_inside_row(lines, row_lines):
+        return -1
+    index = int(row_lines[-1])
+    cells = split_cells(split_ending(lines[index])[0], delimiter)
+    if len(cells) < width.cells:
+        return index
+    last = len(cells) - 1
+    text = cell_text(cells[last])
+    try:
+        parse_number(text)
+    except ValueError:
+        return index
+    if text.lower() in MISSING_TOKENS:
+        return -1           # missing whether cut or not
+    column = [_precision(cell_text(other[last]))
+              for other in (split_cells(split_ending(lines[int(i)])[0], delimiter)
+                            for i in row_lines[:-1])
+              if _holds_value(other, last)]
+    if not column:
+        return index
+    marker = next((m for m in columns.tolist() if last in m), [])
+    row = [_precision(cell_text(cells[c])) for c in marker
+           if c != last and _holds_value(cells, c)]
+    decimals, digits, exponent = _precision(text)
+    if exponent < min(e for _, _, e in column):
+        return index
+    fixed = decimals >= max(d for d, _, _ in column + row)
+    general = (digits >= max(g for _, g, _ in column)
+               and digits >= min((g for _, g, _ in row), default=0)
+               and decimals >= min(d for d, _, _ in column))
+    return -1 if fixed or general else index
+
+
+def _precision(text: str) -> tuple[int, int, int]:
+    """Decimals and significant digits of a number's mantissa, and digits of its exponent
+    (-1 without one)."""
+    mantissa, e, exponent = text.lower().partition("e")
+    dot = mantissa.find(".")
+    decimals = 0 if dot < 0 else len(mantissa) - dot - 1
+    digits = len("".join(ch for ch in mantissa if ch.isdigit()).lstrip("0"))
+    return decimals, digits, (len(exponent.lstrip("+-")) if e else -1)
+
+
+#: Note a reader adds when the file ends inside its last data row and that row looks cut.
+CUT_ROW_NOTE = ("the file ends inside its last row (no final line ending) and that row looks "
+                "cut short: its last cell is not read")
 
 
 @dataclass(frozen=True)
 class RowWidth:
     """How many cells a complete data row holds, and what sets that number.
 
-    A row may hold fewer cells only when the file ends inside it (see :func:`row_cells`).
+    A row may hold fewer cells only when the file ends inside it (see :func:`find_cut_row`).
     Cells beyond ``cells`` are accepted when they are blank (a trailing delimiter, as
     OpenSim writes after every cell, or padding a spreadsheet adds); with ``triplets``
     (TRC) they may also be whole x, y, z triplets of markers the names line does not name,
@@ -251,7 +329,7 @@ class RowWidth:
 def parse_markers(path: Path, lines: Sequence[str], row_lines: np.ndarray,
                   columns: np.ndarray, delimiter: str,
                   column_name: Callable[[int, int], str],
-                  width: RowWidth) -> tuple[np.ndarray, np.ndarray]:
+                  width: RowWidth, cut_row: int = -1) -> tuple[np.ndarray, np.ndarray]:
     """Positions and observed mask of the marker cells of the given rows.
 
     Parameters
@@ -264,20 +342,22 @@ def parse_markers(path: Path, lines: Sequence[str], row_lines: np.ndarray,
         ``column_name(marker, axis)`` names a column in an error message.
     width
         The cells a complete row holds; a row holding another number is an error.
+    cut_row
+        The row the file may have been cut short inside (:func:`find_cut_row`), or -1.
 
     Returns
     -------
     positions, observed
         (frames, markers, 3) with NaN at missing samples, and (frames, markers) bool.
         A sample is missing when any of its cells is missing, or absent or cut short in a
-        row the file ends inside (see :func:`row_cells`); a repair fills its missing cells
+        row the file was cut short inside (see :func:`row_cells`); a repair fills its missing cells
         and keeps the others (:func:`patched_lines`).
     """
     n_frames, n_markers = len(row_lines), len(columns)
     flat = columns.reshape(-1).tolist()
     values = np.full((n_frames, len(flat)), np.nan)
     for f, index in enumerate(row_lines):
-        cells, cut = row_cells(lines, index, delimiter)
+        cells, cut = row_cells(lines, index, delimiter, cut_row)
         if len(cells) != width.cells:
             width.check(path, cells, index, cut)
         try:        # fast path: every cell a plain number
@@ -304,12 +384,12 @@ def parse_markers(path: Path, lines: Sequence[str], row_lines: np.ndarray,
 
 
 def parse_column(path: Path, lines: Sequence[str], row_lines: np.ndarray, column: int,
-                 delimiter: str, name: str) -> np.ndarray:
+                 delimiter: str, name: str, cut_row: int = -1) -> np.ndarray:
     """One column (Frame, Time) of the data rows as floats, NaN where empty, absent or
-    cut short (see :func:`row_cells`)."""
+    the unread last cell of ``cut_row`` (see :func:`row_cells`)."""
     out = np.full(len(row_lines), np.nan)
     for f, index in enumerate(row_lines):
-        cells = row_cells(lines, index, delimiter)[0]
+        cells = row_cells(lines, index, delimiter, cut_row)[0]
         if column < len(cells):
             text = cell_text(cells[column])
             try:
@@ -443,7 +523,7 @@ def column_styles(source: TextSource, cells_needed: set[int]) -> dict[int, Numbe
     decimals = dict.fromkeys(needed, -1)
     exponent: set[int] = set()
     for index in source.row_lines:
-        cells = row_cells(source.lines, index, source.delimiter)[0]
+        cells = row_cells(source.lines, index, source.delimiter, source.cut_row)[0]
         n_cells = len(cells)
         for c in needed:
             if c >= n_cells:
@@ -491,7 +571,7 @@ def patched_lines(source: TextSource, motion: Motion,
     styles = (column_styles(source, needed) if decimals is None
               else dict.fromkeys(needed, NumberStyle(int(decimals))))
     lines = list(source.lines)
-    cut_row = int(source.row_lines[-1]) if ends_inside_row(lines, source.row_lines) else -1
+    cut_row = source.cut_row
     by_frame: dict[int, list[int]] = {}
     for f, m in zip(frames.tolist(), markers.tolist()):
         by_frame.setdefault(f, []).append(m)
@@ -515,17 +595,18 @@ def patched_lines(source: TextSource, motion: Motion,
                 if w >= len(cells) or cell_text(cells[w]).lower() in MISSING_TOKENS:
                     _set_cell(cells, w, "1")
         if index == cut_row:
-            # The file ends inside this row, so a reader sets its last cell aside (it may
-            # be cut short): blank the cut text unless a fill replaced it (a homogeneous
-            # ``1`` cannot be cut), and end the row with an empty cell, so that the output
-            # reads back as written.
+            # The file was cut short inside this row, so a reader sets its last cell aside:
+            # blank the cut text unless a fill replaced it (a homogeneous ``1`` cannot be
+            # cut), and give a short row back the cells of a complete one, empty, so that
+            # the output reads back as written (a complete row whose last cell is empty or
+            # printed in its column's precision is read whole). Never more cells than a
+            # complete row: the output keeps the file's columns.
             kept = {int(c) for m in marker_list if filled[f, m] for c in source.columns[m]}
             if source.w_columns is not None:
                 kept.update(source.w_columns.tolist())
             if cut_cell not in kept:
                 cells[cut_cell] = ""
-            if cells[-1].strip():
-                cells.append("")
+            cells.extend([""] * (source.width - len(cells)))
         lines[index] = source.delimiter.join(cells) + ending
     return lines
 

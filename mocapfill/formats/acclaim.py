@@ -33,8 +33,9 @@ Units: the ASF's ``:units length`` is a divisor of the file's lengths; by the CM
 convention the unit before that division is the inch. By default positions stay in file
 units, labelled ``"in/0.45"`` for CMU (``"in"`` when ``length`` is 1); ``units="mm"``,
 ``"cm"``, ``"m"`` or ``"in"`` converts positions (never the channels or the written file)
-under that convention (CMU: 1 file unit = 0.0254 / 0.45 m = 56.444 mm). The rate is not in
-the files; CMU captured at 120 Hz (option ``rate=``).
+under that convention (CMU: 1 file unit = 0.0254 / 0.45 m = 56.444 mm); a TRC, CSV or
+C3D written from file units gets them converted to mm (``formats.for_output``). The rate
+is not in the files; CMU captured at 120 Hz (option ``rate=``).
 
 Writing patches the AMC the Motion was read from: every line is echoed byte for byte
 except the cells whose observed state changed (filled: a number with 6 significant digits,

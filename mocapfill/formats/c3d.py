@@ -482,13 +482,18 @@ def write(motion: Motion, path: Path, **_options) -> None:
         filled value does not fit the file's int16 storage.
     """
     path = Path(path)
-    if isinstance(motion.source, C3DSource):
+    if patches(motion):
         path.write_bytes(_patched(motion, motion.source, path))
         return
     try:
         path.write_bytes(_new_file(motion))
     except FormatError as exc:
         raise FormatError(path, exc.problem) from None
+
+
+def patches(motion: Motion) -> bool:
+    """Whether :func:`write` writes ``motion`` as a byte patch of the C3D it was read from."""
+    return isinstance(motion.source, C3DSource)
 
 
 def _patched(motion: Motion, source: C3DSource, out: Path) -> bytes:

@@ -33,9 +33,12 @@ Rows: every data row holds as many cells as the header row (the axis row in a Vi
 export, the first row in a headerless file); a row with fewer cells, or with values
 beyond them, is a FormatError naming its line. Empty cells beyond them are accepted (a
 trailing delimiter, spreadsheet padding). A file that does not end with a line ending
-may have been cut short anywhere in its last row, inside a number too (``956.933`` cut
-to ``956``): the last cell of that row is not read, the row may be short, and the
-samples of its absent or unread cells are missing; the source handle's notes say so.
+is read whole (many tools end a file so) unless its last row shows that the file was cut
+short inside it (``_text.find_cut_row``): it holds fewer cells than a complete row, or
+its last cell is not a number or is printed less precisely than the cells around it
+(``956.933`` cut to ``956``). Then the last cell of that row is not read, the row may be
+short, the samples of its absent or unread cells are missing, and the source handle's
+notes say so.
 
 Rate, first in this order: the ``# rate:`` comment; the Vicon rate line; the ``Time``
 column (median step, or the mean step when all steps agree within rounding); the
@@ -55,9 +58,11 @@ precision. Any other Motion is written as a new plain CSV:
 ``# units: mm, rate: 120`` then ``Frame,Time,NAME_X,NAME_Y,NAME_Z,...``, empty cells for
 missing samples, coordinates as the shortest text that reads back exactly; a clip without
 a rate (0 Hz, a C3D with no ``POINT:RATE``) is written at 120 Hz, and a clip without
-markers is refused. A patched file that ended inside its last row still does; if that
-row is patched, its unread last cell is blanked (unless filled) and the row ends with an
-empty cell, so the output reads back as written.
+markers is refused. A patched file that ended without a line ending still does, and its
+last row keeps its cells (an observed last value byte for byte). If the file was cut
+short inside that row and the row is patched, its unread last cell is blanked (unless
+filled) and a short row gets the empty cells of a complete one, never more, so the output
+reads back as written.
 """
 from __future__ import annotations
 
@@ -74,7 +79,7 @@ from ._text import (
     RowWidth,
     TextSource,
     cell_text,
-    ends_inside_row,
+    find_cut_row,
     first_frame_from,
     format_float,
     frame_rate,
@@ -179,13 +184,18 @@ def write(motion: Motion, path: Path, *, decimals: int | None = None,
     FormatError
         The clip has no markers (a CSV without marker columns cannot be read back).
     """
-    source = motion.source
-    if isinstance(source, TextSource) and source.kind in KINDS and source.fits(motion):
-        write_lines(path, patched_lines(source, motion, decimals))
+    if patches(motion):
+        write_lines(path, patched_lines(motion.source, motion, decimals))
     elif motion.n_markers == 0:
         raise FormatError(path, "the clip has no markers; a CSV file needs at least one")
     else:
         write_lines(path, new_file_lines(motion, decimals))
+
+
+def patches(motion: Motion) -> bool:
+    """Whether :func:`write` writes ``motion`` as a patched copy of the CSV it was read from."""
+    source = motion.source
+    return isinstance(source, TextSource) and source.kind in KINDS and source.fits(motion)
 
 
 def new_file_lines(motion: Motion, decimals: int | None = None) -> list[str]:
@@ -249,17 +259,18 @@ def _read_plain(path: Path, lines: list[str], start: int, delimiter: str,
         return headers[columns[marker, axis]]
 
     width = RowWidth(_filled_width(headers), "the header row has")
+    cut = find_cut_row(lines, row_lines, delimiter, width, columns)
     positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
-                                        column_name, width)
-    frames = (parse_column(path, lines, row_lines, frame_col, delimiter, headers[frame_col])
-              if frame_col >= 0 else np.array([]))
-    times = (parse_column(path, lines, row_lines, time_col, delimiter, headers[time_col])
-             if time_col >= 0 else np.array([]))
-    notes = ((f"ignored columns: {', '.join(ignored)}",) if ignored else ()) \
-        + _cut_note(lines, row_lines)
+                                        column_name, width, cut)
+    frames = (parse_column(path, lines, row_lines, frame_col, delimiter, headers[frame_col],
+                           cut) if frame_col >= 0 else np.array([]))
+    times = (parse_column(path, lines, row_lines, time_col, delimiter, headers[time_col],
+                          cut) if time_col >= 0 else np.array([]))
+    notes = ((f"ignored columns: {', '.join(ignored)}",) if ignored else ()) + _cut_note(cut)
     w_columns = (np.array([w_cols.get(n, -1) for n in labels], dtype=int) if ktk else None)
     source = TextSource("ktk" if ktk else "csv", tuple(lines), delimiter, row_lines,
-                        columns, observed, labels, w_columns=w_columns, notes=notes)
+                        columns, observed, labels, w_columns=w_columns, notes=notes,
+                        cut_row=cut, width=width.cells)
     return Motion(positions, observed, labels,
                   _rate(path, comments, rate_from_times(times), rate),
                   comments.get("units") or units or ("m" if ktk else DEFAULT_UNITS),
@@ -305,9 +316,10 @@ def _read_vicon(path: Path, lines: list[str], delimiter: str, rate: float | None
         return f"{labels[marker]}_{'XYZ'[axis]}"
 
     width = RowWidth(_filled_width(axes_row), "the axis row has")
+    cut = find_cut_row(lines, row_lines, delimiter, width, columns)
     positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
-                                        column_name, width)
-    frames = parse_column(path, lines, row_lines, 0, delimiter, "Frame")
+                                        column_name, width, cut)
+    frames = parse_column(path, lines, row_lines, 0, delimiter, "Frame", cut)
     unit_set = {units_row[c] for c in columns.reshape(-1)
                 if c < len(units_row) and units_row[c]}
     if len(unit_set) > 1:
@@ -315,10 +327,9 @@ def _read_vicon(path: Path, lines: list[str], delimiter: str, rate: float | None
     stated = head[1][0] if head[1] else ""
     file_rate = frame_rate(path, stated, "Trajectories rate") if stated else None
     others = [name for key, (_, name) in sections.items() if key != "trajectories"]
-    notes = ((f"sections not read: {', '.join(others)}",) if others else ()) \
-        + _cut_note(lines, row_lines)
+    notes = ((f"sections not read: {', '.join(others)}",) if others else ()) + _cut_note(cut)
     source = TextSource("vicon", tuple(lines), delimiter, row_lines, columns, observed,
-                        labels, notes=notes)
+                        labels, notes=notes, cut_row=cut, width=width.cells)
     return Motion(positions, observed, labels, file_rate or rate or DEFAULT_RATE,
                   unit_set.pop() if unit_set else (units or DEFAULT_UNITS),
                   source=source, path=path, first_frame=first_frame_from(frames))
@@ -340,14 +351,14 @@ def _read_headerless(path: Path, lines: list[str], start: int, delimiter: str,
         return f"{columns[marker, axis] + 1} ({labels[marker]}_{'XYZ'[axis]})"
 
     width = RowWidth(n_cols, "the first row has")
+    cut = find_cut_row(lines, row_lines, delimiter, width, columns)
     positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
-                                        column_name, width)
-    leading = [parse_column(path, lines, row_lines, c, delimiter, str(c + 1))
+                                        column_name, width, cut)
+    leading = [parse_column(path, lines, row_lines, c, delimiter, str(c + 1), cut)
                for c in range(lead)]
-    cut = ends_inside_row(lines, row_lines)
     for values in leading:
         # a counter cut short in the row the file ends inside reads as missing
-        counted = values[:-1] if cut and np.isnan(values[-1]) else values
+        counted = values[:-1] if cut >= 0 and np.isnan(values[-1]) else values
         if not (np.all(np.isfinite(counted)) and np.all(np.diff(counted) > 0)):
             raise FormatError(path, f"headerless CSV has {n_cols} columns, not a multiple "
                                     f"of 3, and its first {lead} column(s) are not an "
@@ -359,7 +370,8 @@ def _read_headerless(path: Path, lines: list[str], start: int, delimiter: str,
         whole = np.all(np.mod(leading[0], 1) == 0)
         frames, times = (leading[0], times) if whole else (frames, leading[0])
     source = TextSource("headerless", tuple(lines), delimiter, row_lines, columns,
-                        observed, labels, notes=_cut_note(lines, row_lines))
+                        observed, labels, notes=_cut_note(cut), cut_row=cut,
+                        width=width.cells)
     return Motion(positions, observed, labels,
                   _rate(path, comments, rate_from_times(times), rate),
                   comments.get("units") or units or DEFAULT_UNITS,
@@ -394,8 +406,8 @@ def _filled_width(headers: list[str]) -> int:
     return filled[-1] + 1 if filled else len(headers)
 
 
-def _cut_note(lines: Sequence[str], row_lines: np.ndarray) -> tuple[str, ...]:
-    return (CUT_ROW_NOTE,) if ends_inside_row(lines, row_lines) else ()
+def _cut_note(cut_row: int) -> tuple[str, ...]:
+    return (CUT_ROW_NOTE,) if cut_row >= 0 else ()
 
 
 def _all_numeric(cells: list[str]) -> bool:

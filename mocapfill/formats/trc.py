@@ -31,12 +31,15 @@ Strict where leniency would misread the file:
   with fewer cells, or with cells beyond them that are neither empty (a trailing tab,
   as OpenSim writes after every cell) nor whole x, y, z triplets, is a FormatError
   naming its line;
-- a file that does not end with a line ending may have been cut short anywhere in its
-  last row, inside a number too (``956.933`` cut to ``956``): the last cell of that row
-  is not read, the row may be short, and the samples of its absent or unread cells are
-  missing; the notes say so. A patched copy of such a file still ends inside that row;
-  if the row is patched, its unread last cell is blanked (unless filled) and the row
-  ends with an empty cell, so the output reads back as written;
+- a file that does not end with a line ending is read whole unless its last row shows
+  that the file was cut short inside it (``_text.find_cut_row``): fewer cells than a
+  complete row, or a last cell that is not a number or is printed less precisely than
+  the cells around it (``956.933`` cut to ``956``). Then the last cell of that row is not
+  read, the row may be short, and the samples of its absent or unread cells are
+  missing; the notes say so. A patched copy of a file without a final line ending has
+  none either and keeps the cells of its last row; if the file was cut short and that
+  row is patched, its unread last cell is blanked (unless filled) and a short row gets
+  the empty cells of a complete one, so the output reads back as written;
 - a marker name given twice in the ``Frame#`` line, and a ``DataRate`` that is not a
   positive, finite number (``inf``, ``0``, ``nan``), are FormatErrors.
 
@@ -78,7 +81,7 @@ from ._text import (
     RowWidth,
     TextSource,
     cell_text,
-    ends_inside_row,
+    find_cut_row,
     first_frame_from,
     format_float,
     frame_rate,
@@ -88,7 +91,6 @@ from ._text import (
     patched_lines,
     rate_from_times,
     read_lines,
-    row_cells,
     split_cells,
     split_ending,
     writable_rate,
@@ -170,25 +172,27 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
     columns = 2 + np.arange(3 * n_markers, dtype=int).reshape(n_markers, 3)
     width = RowWidth(2 + 3 * n_markers, f"Frame#, Time and {n_markers} named markers take",
                      triplets=True)
-    cut = ends_inside_row(lines, row_lines)
-    last_short = cut and len(row_cells(lines, row_lines[-1], delimiter)[0]) < width.cells
+    cut = find_cut_row(lines, row_lines, delimiter, width, columns)
+    last_short = (cut >= 0
+                  and len(split_cells(split_ending(lines[cut])[0], delimiter)) < width.cells)
 
     def column_name(marker: int, axis: int) -> str:
         return f"{'XYZ'[axis]}{marker + 1} ({labels[marker]})"
 
     positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
-                                        column_name, width)
-    frames = parse_column(path, lines, row_lines, 0, delimiter, "Frame#")
-    times = parse_column(path, lines, row_lines, 1, delimiter, "Time")
+                                        column_name, width, cut)
+    frames = parse_column(path, lines, row_lines, 0, delimiter, "Frame#", cut)
+    times = parse_column(path, lines, row_lines, 1, delimiter, "Time", cut)
 
     declared_frames = _int(header.get("NumFrames"))
     notes = _notes(lines, row_lines, delimiter, header, n_markers, declared_frames,
-                   cut, last_short)
+                   cut >= 0, last_short)
     truncated = (len(row_lines) if declared_frames is not None
                  and len(row_lines) < declared_frames else None)
     source = TextSource("trc", tuple(lines), delimiter, row_lines, columns, observed,
                         labels, declared_frames=declared_frames,
-                        truncated_rows_read=truncated, notes=tuple(notes))
+                        truncated_rows_read=truncated, notes=tuple(notes), cut_row=cut,
+                        width=width.cells)
     stated = header.get("DataRate")
     file_rate = frame_rate(path, stated, "DataRate") if stated else rate_from_times(times)
     start_frame = _int(header.get("OrigDataStartFrame"))
@@ -220,13 +224,18 @@ def write(motion: Motion, path: Path, *, decimals: int | None = None,
     FormatError
         The clip has no markers (a TRC naming none cannot be read back).
     """
-    source = motion.source
-    if isinstance(source, TextSource) and source.kind == "trc" and source.fits(motion):
-        write_lines(path, patched_lines(source, motion, decimals))
+    if patches(motion):
+        write_lines(path, patched_lines(motion.source, motion, decimals))
     elif motion.n_markers == 0:
         raise FormatError(path, "the clip has no markers; a TRC file needs at least one")
     else:
         write_lines(path, new_file_lines(motion, _target_name(Path(path)), decimals))
+
+
+def patches(motion: Motion) -> bool:
+    """Whether :func:`write` writes ``motion`` as a patched copy of the TRC it was read from."""
+    source = motion.source
+    return isinstance(source, TextSource) and source.kind == "trc" and source.fits(motion)
 
 
 def new_file_lines(motion: Motion, name: str, decimals: int | None = None) -> list[str]:

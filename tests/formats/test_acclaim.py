@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mocapfill import formats
 from mocapfill.errors import FormatError, ParameterError
 from mocapfill.formats import acclaim, bvh
 from mocapfill.motion import from_matrix
@@ -528,3 +529,25 @@ def test_the_copy_never_replaces_an_asf_and_takes_the_subject_prefix_instead(tmp
     assert (tmp_path / "copy.asf").read_bytes() == (tmp_path / "tiny.asf").read_bytes()
     np.testing.assert_array_equal(formats.read(tmp_path / "copy_02.amc").positions,
                                   motion.positions)
+
+
+# ----------------------------------------------------------------------- units of new files
+
+@pytest.mark.parametrize("suffix", [".trc", ".csv", ".c3d"])
+def test_a_position_file_written_from_an_amc_is_in_mm(tmp_path, suffix):
+    # "in/0.5" is no unit a TRC or C3D reader knows: the lengths are converted, not labelled.
+    amc = acclaim.read(write_pair(tmp_path, [frame(1), frame(2, hand="10 25")]))
+    out = tmp_path / f"out{suffix}"
+    notes = formats.write(amc, out)
+    back = formats.read(out)
+    assert back.units == "mm"
+    np.testing.assert_allclose(back.positions, amc.positions * 25.4 / 0.5, rtol=1e-6)
+    assert notes == ("lengths in in/0.5 converted to mm (1 in/0.5 = 50.8 mm)",)
+
+
+def test_an_npz_written_from_an_amc_keeps_its_unit(tmp_path):
+    amc = acclaim.read(write_pair(tmp_path, [frame(1)]))
+    assert formats.write(amc, tmp_path / "out.npz") == ()
+    back = formats.read(tmp_path / "out.npz")
+    assert back.units == "in/0.5"
+    np.testing.assert_array_equal(back.positions, amc.positions)

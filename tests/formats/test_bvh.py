@@ -359,3 +359,17 @@ def test_every_shared_bvh_file_reads_and_writes_back_unchanged(path, tmp_path):
     out = tmp_path / path.name
     bvh.write(motion, out)
     assert out.read_bytes() == path.read_bytes()
+
+
+@pytest.mark.parametrize("suffix", [".trc", ".c3d"])
+def test_a_position_file_written_from_a_bvh_keeps_its_positions_and_notes_the_unit(tmp_path,
+                                                                                  suffix):
+    # BVH states no length unit: nothing to convert by, so the values are kept (a BVH ->
+    # TRC -> NPZ round trip stays lossless) and the caller is told.
+    motion = bvh.read(write_bvh(tmp_path, ["0 0 0 0 0 0 10 20 30", "1 2 3 0 0 0 10 20 30"]))
+    out = tmp_path / f"out{suffix}"
+    notes = formats.write(motion, out)
+    assert len(notes) == 1 and "'unknown' is not known" in notes[0]
+    back = formats.read(out)
+    assert back.units == "unknown"
+    np.testing.assert_allclose(back.positions, motion.positions, rtol=1e-6)

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from mocapfill import formats
 from mocapfill.errors import FormatError
-from mocapfill.formats import c3d
+from mocapfill.formats import c3d, trc
 from mocapfill.motion import Motion
 
 from ..conftest import shared_file, shared_files
@@ -314,6 +314,36 @@ def test_model_outputs_are_never_patched(tmp_path):
     assert not back.observed[5:9, 2].any() and back.observed[5:9, [0, 1, 3, 4]].all()
 
 
+@pytest.mark.parametrize("suffix", [".trc", ".csv"])
+def test_model_outputs_are_left_out_of_a_trc_or_csv(tmp_path, suffix):
+    # A TRC or CSV holds markers: an angle written there would read back as a marker,
+    # be filled by a later repair and serve as evidence for the real markers.
+    residuals = np.ones((40, 5))
+    residuals[5:9, 2] = -1
+    path = write_c3d(tmp_path / "m.c3d", walk(), residuals,
+                     labels=["A", "LKneeAngles", "B", "LHipPower", "C"],
+                     groups={"POINT": {"ANGLES": ["LKneeAngles"], "POWERS": ["LHipPower"]}})
+    motion = c3d.read(path)
+    out = tmp_path / f"out{suffix}"
+    notes = formats.write(motion, out)
+    back = formats.read(out)
+    assert back.labels == ("A", "B", "C")
+    np.testing.assert_allclose(back.positions, motion.positions[:, [0, 2, 4]], rtol=1e-6)
+    np.testing.assert_array_equal(back.observed, motion.observed[:, [0, 2, 4]])
+    assert len(notes) == 1 and notes[0].startswith("2 point(s) that are not marker "
+                                                   "trajectories")
+
+
+def test_model_outputs_stay_in_a_c3d_and_an_npz(tmp_path):
+    path = write_c3d(tmp_path / "m.c3d", walk(), labels=["A", "LHipPower", "B", "C", "D"],
+                     groups={"POINT": {"POWERS": ["LHipPower"]}})
+    motion = c3d.read(path)
+    for suffix in (".c3d", ".npz"):
+        assert formats.write(motion, tmp_path / f"out{suffix}") == ()
+        back = formats.read(tmp_path / f"out{suffix}")
+        assert back.labels == motion.labels and back.fillable.tolist() == [1, 0, 1, 1, 1]
+
+
 def test_nothing_to_fill_copies_the_file(tmp_path):
     path, _, _ = gapped_file(tmp_path)
     out = tmp_path / "out.c3d"
@@ -564,6 +594,14 @@ def test_vicon_model_outputs_are_not_fillable(relative, n_outputs):
     outputs = [label for label, ok in zip(motion.labels, motion.fillable) if not ok]
     assert len(outputs) == n_outputs
     assert any(label.rsplit(":", 1)[-1].endswith("Angles") for label in outputs)
+
+
+def test_vicon_model_outputs_are_left_out_of_a_trc(tmp_path):
+    motion = c3d.read(shared_file("c3d/btk-PiG__PiG_Motion-FlatFoot-Full.c3d"))
+    out = tmp_path / "pig.trc"
+    formats.write(motion, out)
+    markers = [label for label, ok in zip(motion.labels, motion.fillable) if ok]
+    assert formats.read(out).labels == tuple(trc.opensim_names(markers))
 
 
 def test_duplicate_real_labels_get_numbered_suffixes():

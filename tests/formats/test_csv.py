@@ -61,7 +61,7 @@ def assert_patch_invariant(original: Motion, repaired: Motion, out: Path) -> Non
     kept: dict[tuple[int, int], float] = {}         # (row, cell) -> the value it holds
     for f, m in zip(*np.nonzero(filled)):
         index = int(source.row_lines[f])
-        readable = row_cells(source.lines, index, source.delimiter)[0]
+        readable = row_cells(source.lines, index, source.delimiter, source.cut_row)[0]
         cells = set()
         for c in source.columns[m].tolist():
             value = float(parse_number(cell_text(readable[c]))) if c < len(readable) else np.nan
@@ -288,12 +288,22 @@ def test_patch_keeps_the_observed_cells_of_a_partly_observed_sample(tmp_path):
 
 
 def test_patch_rewrites_the_unread_cut_cell_of_a_partly_observed_sample(tmp_path):
-    # The file ends inside its last row: "8" may be "8.25" cut short, so it is filled.
-    path = write_text(tmp_path, "A_X,A_Y,A_Z\n1,2,3\n5,6,7\n7,,8")
+    # The file ends inside its last row and "8" is printed with fewer decimals than its
+    # column: it may be "8.25" cut short, so it is filled.
+    path = write_text(tmp_path, "A_X,A_Y,A_Z\n1.00,2.00,3.00\n5.00,6.00,7.00\n7.00,,8")
     original = csvfmt.read(path)
     out = tmp_path / "out.csv"
     csvfmt.write(fill_by_interp(original), out)           # held at 5, 6, 7
-    assert out.read_text() == "A_X,A_Y,A_Z\n1,2,3\n5,6,7\n7,6,7,"
+    assert out.read_text().endswith("\n7.00,6.00,7.00")   # no cell added, no line ending
+
+
+def test_patch_keeps_the_last_cell_of_a_file_without_a_final_line_ending(tmp_path):
+    # "8" is as precise as its column: the file merely lacks its final line ending.
+    path = write_text(tmp_path, "A_X,A_Y,A_Z\n1,2,3\n5,6,7\n7,,8")
+    original = csvfmt.read(path)
+    out = tmp_path / "out.csv"
+    csvfmt.write(fill_by_interp(original), out)           # Y held at 6
+    assert out.read_text() == "A_X,A_Y,A_Z\n1,2,3\n5,6,7\n7,6,8"
 
 
 def test_patch_leaves_still_missing_samples_with_the_files_missing_token(tmp_path):
@@ -627,28 +637,70 @@ def test_a_vicon_rate_that_is_not_a_positive_finite_number_is_a_format_error(tmp
     assert str(info.value).startswith(f"{path}: ") and repr(stated) in str(info.value)
 
 
-def test_patch_of_the_row_a_file_ends_inside_reads_back_as_written(tmp_path):
-    head = "A_X,A_Y,A_Z,B_X,B_Y,B_Z\n1,2,3,4,5,6\n"
-    path = write_text(tmp_path, head + "1,2,3,,,\n1,2,3,5,6,7")
+def test_patch_of_the_row_a_file_was_cut_inside_reads_back_as_written(tmp_path):
+    head = "A_X,A_Y,A_Z,B_X,B_Y,B_Z\n1.0,2.0,3.0,4.0,5.0,6.0\n"
+    path = write_text(tmp_path, head + "1.0,2.0,3.0,,,\n1.0,2.0,3.0,5.0,6.0,7")
     original = csvfmt.read(path)
     repaired = fill_by_interp(original)                 # B held at 4, 5, 6 to the end
     out = tmp_path / "out.csv"
     csvfmt.write(repaired, out)
     assert_patch_invariant(original, repaired, out)
-    # B's 5 and 6 in the last row are observed cells, kept; its unread 7 is filled.
-    assert out.read_text() == head + "1,2,3,4,5,6\n1,2,3,5,6,6,"    # still no final ending
+    # B's 5.0 and 6.0 in the last row are observed cells, kept; its cut 7 is filled.
+    assert out.read_text() == head + "1.0,2.0,3.0,4.0,5.0,6.0\n1.0,2.0,3.0,5.0,6.0,6.0"
 
 
-def test_patch_of_the_row_a_file_ends_inside_blanks_its_unread_last_cell(tmp_path):
-    path = write_text(tmp_path, "A_X,A_Y,A_Z,B_X,B_Y,B_Z\n1,2,3,4,5,6\n,,,5,6,7")
+def test_patch_of_the_row_a_file_was_cut_inside_blanks_its_unread_last_cell(tmp_path):
+    path = write_text(tmp_path, "A_X,A_Y,A_Z,B_X,B_Y,B_Z\n1.0,2.0,3.0,4.0,5.0,6.0\n,,,5.0,6.0,7")
     original = csvfmt.read(path)
     positions, observed = original.positions.copy(), original.observed.copy()
     positions[1, 0], observed[1, 0] = [1, 2, 3], True   # fill A only; B stays missing
     repaired = original.with_positions(positions, observed)
     out = tmp_path / "out.csv"
     csvfmt.write(repaired, out)
-    assert out.read_text().endswith("\n1,2,3,5,6,")
+    assert out.read_text().endswith("\n1.0,2.0,3.0,5.0,6.0,")
     assert csvfmt.read(out).observed.tolist() == [[True, True], [True, False]]
+
+
+def test_patch_of_a_short_cut_row_gives_it_the_cells_of_a_complete_row_and_no_more(tmp_path):
+    path = write_text(tmp_path, "A_X,A_Y,A_Z,B_X,B_Y,B_Z\n1.0,2.0,3.0,4.0,5.0,6.0\n1.0,2")
+    original = csvfmt.read(path)
+    assert original.observed.tolist() == [[True, True], [False, False]]
+    positions, observed = original.positions.copy(), original.observed.copy()
+    positions[1, 0], observed[1, 0] = [1, 2, 3], True   # fill A only; B stays missing
+    out = tmp_path / "out.csv"
+    csvfmt.write(original.with_positions(positions, observed), out)
+    assert out.read_text().endswith("\n1.0,2.0,3.0,,,")       # A's observed 1.0 kept
+    assert csvfmt.read(out).observed.tolist() == [[True, True], [True, False]]
+
+
+# The sample file's last row ends "...,183.564,24.826": a complete row.
+NO_FINAL_ENDING = ("A_X,A_Y,A_Z,B_X,B_Y,B_Z\n"
+                   "1.500,2.500,3.500,4.500,5.500,6.750\n"
+                   "1.600,2.600,3.600,,,\n"
+                   "1.700,2.700,3.700,183.564,24.826,24.826")
+
+
+def test_a_file_without_a_final_line_ending_reads_its_last_value_as_data(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, NO_FINAL_ENDING))
+    assert motion.observed.tolist() == [[True, True], [True, False], [True, True]]
+    assert motion.positions[2, 1, 2] == 24.826
+    assert not any("ends inside" in note for note in motion.source.notes)
+
+
+@pytest.mark.parametrize("last_row", ["1.700,2.700,3.700,183.564,24.826,24.826",
+                                      ",,,183.564,24.826,24.826"],
+                         ids=["observed", "gap in the last row"])
+def test_repair_of_a_file_without_a_final_line_ending_keeps_its_last_values(tmp_path,
+                                                                           last_row):
+    text = NO_FINAL_ENDING.rsplit("\n", 1)[0] + "\n" + last_row
+    original = csvfmt.read(write_text(tmp_path, text))
+    repaired = fill_by_interp(original)
+    out = tmp_path / "out.csv"
+    csvfmt.write(repaired, out)
+    assert_patch_invariant(original, repaired, out)
+    last = out.read_text().rsplit("\n", 1)[1]              # still no final line ending
+    assert last.endswith(",183.564,24.826,24.826") and last.count(",") == 5
+    assert csvfmt.read(out).observed.all()
 
 
 def test_a_clip_without_rate_is_written_at_the_rate_of_its_time_column(tmp_path):
@@ -712,6 +764,14 @@ def test_ktk_real_file_reads_39_points():
     motion = csvfmt.read(shared_file("csv/ktk-tennis_serve.csv"))
     assert (motion.n_markers, motion.units, motion.source.kind) == (39, "m", "ktk")
     assert motion.rate == pytest.approx(50)
+
+
+def test_ktk_real_file_without_a_final_line_ending_reads_its_last_row_whole():
+    path = shared_file("csv/ktk-tennis_serve.csv")
+    assert not path.read_bytes().endswith(b"\n")
+    motion = csvfmt.read(path)
+    assert motion.source.cut_row == -1 and motion.observed[-1].all()
+    assert not any("ends inside" in note for note in motion.source.notes)
 
 
 @pytest.mark.slow

@@ -129,6 +129,29 @@ def test_file_cut_inside_its_last_number_reads_that_sample_as_missing(tmp_path):
     assert any("ends inside its last row" in note for note in motion.source.notes)
 
 
+def test_file_without_a_final_line_ending_reads_its_last_value_as_data(tmp_path):
+    motion = trc.read(write_text(tmp_path, trc_text(ROWS).removesuffix("\n"), "a.trc"))
+    assert motion.observed[2].tolist() == [True, True]
+    assert motion.positions[2, 1, 2] == 31
+    assert not any("ends inside" in note for note in motion.source.notes)
+
+
+@pytest.mark.parametrize("last_row", [ROWS[2], "3\t0.02\t\t\t\t11.000\t21.000\t31.000"],
+                         ids=["observed", "gap in the last row"])
+def test_repair_of_a_file_without_a_final_line_ending_keeps_its_last_values(tmp_path,
+                                                                           last_row):
+    text = trc_text(ROWS[:2] + [last_row]).removesuffix("\n")
+    original = trc.read(write_text(tmp_path, text, "a.trc"))
+    repaired = fill_by_interp(original)
+    out = tmp_path / "out.trc"
+    trc.write(repaired, out)
+    last = out.read_text().rsplit("\n", 1)[1]              # still no final line ending
+    assert last.endswith("\t11.000\t21.000\t31.000") and last.count("\t") == 7
+    assert out.read_text().rsplit("\n", 1)[0] == text.rsplit("\n", 1)[0].replace(
+        "3.600\t\t\t", "3.600\t10.500\t20.500\t30.500")
+    assert trc.read(out).observed.all()
+
+
 def test_every_cut_of_a_file_reads_as_a_prefix_of_its_samples_or_fails(tmp_path):
     assert_every_cut_reads_as_a_prefix(write_text(tmp_path, trc_text(ROWS), "a.trc"))
 
@@ -219,7 +242,7 @@ def test_patch_pads_the_short_row_a_file_ends_inside(tmp_path):
     assert original.observed[2].tolist() == [True, False]
     out = tmp_path / "out.trc"
     trc.write(fill_by_interp(original), out)       # R ASI held at 11, 21, 31
-    last = "3\t0.02\t1.800\t2.800\t3.800\t11.000\t21.000\t31.000\t"    # no line ending still
+    last = "3\t0.02\t1.800\t2.800\t3.800\t11.000\t21.000\t31.000"    # no line ending still
     assert out.read_text().endswith("\n" + last)
     assert trc.read(out).observed.all()
 
