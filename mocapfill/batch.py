@@ -90,6 +90,7 @@ class FileRecord:
     gaps_left: int = 0
     seconds: float = 0.0
     frames: int = 0
+    notes: tuple[str, ...] = ()     # what the output's format could not hold (formats.write)
 
 
 @dataclass
@@ -140,10 +141,12 @@ class BatchReport:
         return EXIT_OK
 
     def summary(self) -> str:
-        """'412 repaired, 3 unchanged, 2 failed in 38.1 s' (zero counts after the first
-        are left out)."""
+        """'412 repaired, 3 unchanged, 2 failed, 17 gaps left in 38.1 s' (zero counts
+        after the first are left out): the gaps left say why ``--check`` exits 1."""
         parts = [f"{self.repaired} repaired"]
         parts += [f"{self.count(s)} {s}" for s in (UNCHANGED, SKIPPED, FAILED) if self.count(s)]
+        if self.gaps_left:
+            parts.append(f"{self.gaps_left} gap{'s' if self.gaps_left != 1 else ''} left")
         return f"{', '.join(parts)} in {self.seconds:.1f} s"
 
     def as_dict(self) -> dict:
@@ -340,7 +343,7 @@ def plan(paths: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None =
 # ---------------------------------------------------------------- one file
 
 
-def _write_in_place(motion, path: Path) -> None:
+def _write_in_place(motion, path: Path) -> tuple[str, ...]:
     """Replace ``path`` atomically: write a sibling temp file with the same suffix (through
     ``formats.write``, itself atomic), keep the input's permissions, rename it over. A
     symbolic link is followed: its target is replaced and the link kept (renaming over the
@@ -349,7 +352,7 @@ def _write_in_place(motion, path: Path) -> None:
 
     path = Path(os.path.realpath(path))
     with formats.atomic_output(path, suffix=f".inplace{path.suffix}", mode_from=path) as tmp:
-        formats.write(motion, tmp, final_path=path)
+        return formats.write(motion, tmp, final_path=path)
 
 
 def _temp_patterns(output: Path) -> list[str]:
@@ -404,9 +407,10 @@ def repair_file(job: FileJob) -> FileRecord:
     started = time.perf_counter()
     frames = 0
 
-    def record(status: str, reason: str = "", filled: int = 0, left: int = 0) -> FileRecord:
+    def record(status: str, reason: str = "", filled: int = 0, left: int = 0,
+               notes: tuple[str, ...] = ()) -> FileRecord:
         return FileRecord(str(job.input), str(job.output), status, reason, filled, left,
-                          round(time.perf_counter() - started, 4), frames)
+                          round(time.perf_counter() - started, 4), frames, notes)
 
     problem = formats.skeleton_output_problem(job.output, job.input)
     if problem is not None:         # known before reading: no solve thrown away
@@ -423,16 +427,17 @@ def repair_file(job: FileJob) -> FileRecord:
         # Made here, not by the planner, so Dask workers create the tree on their side;
         # after the repair, so a file that fails leaves no empty folder behind.
         job.output.parent.mkdir(parents=True, exist_ok=True)
+        # The notes of the output's format (model outputs left out of a TRC, lengths
+        # converted to mm) go in the record, as `repair IN OUT` prints them.
         if result.filled:
             if job.in_place:
-                _write_in_place(result.motion, job.output)
+                notes = _write_in_place(result.motion, job.output)
             else:
-                formats.write(result.motion, job.output)
-            return record(REPAIRED, _not_filled(result), result.filled, result.left)
-        if not job.in_place:
-            formats.write(result.motion, job.output)
+                notes = formats.write(result.motion, job.output)
+            return record(REPAIRED, _not_filled(result), result.filled, result.left, notes)
+        notes = () if job.in_place else formats.write(result.motion, job.output)
         reason = f"no gap filled ({_not_filled(result)})" if result.gaps else "no gaps"
-        return record(UNCHANGED, reason, 0, result.left)
+        return record(UNCHANGED, reason, 0, result.left, notes)
     except FormatError as exc:
         # The record goes out under the input's name; an error about another file (the
         # output: "No space left on device" while writing it) keeps that file's name, which

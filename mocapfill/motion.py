@@ -43,8 +43,9 @@ class Motion:
         Length unit of ``positions`` as the file states it ("mm", "m", ...).
     fillable
         (markers,) bool; False for points that are not markers (C3D model outputs such as
-        angles, forces, moments, powers) or that the user excluded. They are never filled
-        and never used as evidence for other markers.
+        angles, forces, moments, powers). They are never filled, never used as evidence for
+        other markers, and left out of a new TRC or CSV. (Markers the user excludes with
+        ``--exclude`` stay fillable: they are evidence, only their gaps are left.)
     source
         Format-specific handle that a writer of the same format uses to patch the original
         file instead of regenerating it (None for data built in memory).

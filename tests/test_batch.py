@@ -27,7 +27,8 @@ from .helpers import smooth_clip, with_gap
 # gapped file is "repaired" whatever the solver defaults are tuned to.
 LINEAR = ("--method", "linear")
 N_GAPPED = 20
-SUMMARY = re.compile(r"^\d+ repaired(, \d+ (unchanged|skipped|failed))* in \d+\.\d s$")
+SUMMARY = re.compile(r"^\d+ repaired(, \d+ (unchanged|skipped|failed))*(, \d+ gaps? left)? "
+                     r"in \d+\.\d s$")
 
 
 def _clip_tree(root: Path, corrupt: bool = True) -> dict[str, Path]:
@@ -196,6 +197,29 @@ def test_a_marker_pattern_that_matches_nothing_fails_alone_exit_2_and_each_file_
     record, = _report(report_path)["files"]
     assert record["status"] == "failed" and f"{option} MK1 matches no marker" in record["reason"]
     assert not (tmp_path / "out" / "trial.npz").exists()
+
+
+def test_check_summary_counts_the_gaps_left_and_records_keep_the_output_formats_notes(
+        tmp_path):
+    # Two clips each with a gap at its first frame (left by default) and an interior one;
+    # one point of each is not a marker, which a TRC cannot hold.
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for i in range(2):
+        clip = with_gap(with_gap(smooth_clip(120, 4, seed=i), 0, 0, 5), 1, 40, 50)
+        formats.write(clip.replace(fillable=np.array([True, True, True, False])),
+                      folder / f"t{i}.npz")
+    report_path = tmp_path / "r.json"
+    result = run(folder, "-o", tmp_path / "out", "-j", "1", "--suffix", ".trc", "--check",
+                 "--report", report_path, *LINEAR)
+    assert result.exit_code == 1, result.output
+    summary = result.stderr.strip().splitlines()[-1]
+    assert SUMMARY.match(summary) and summary.startswith("2 repaired, 2 gaps left in ")
+    for record in _report(report_path)["files"]:
+        assert record["gaps_left"] == 1
+        note, = record["notes"]
+        assert note.startswith("1 point(s) that are not marker trajectories")
+        assert formats.read(record["output"]).n_markers == 3
 
 
 def test_rerun_skips_up_to_date_outputs_and_redoes_changed_inputs(clean_tree, tmp_path):
