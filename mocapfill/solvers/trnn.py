@@ -467,6 +467,7 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
 
     from .gapwise import (
         MIN_MODEL_GAP,
+        ShortRunsFirst,
         Validation,
         blend,
         held_short_runs,
@@ -474,7 +475,6 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
         regression_fill,
         rigid_fill,
         row_groups,
-        short_runs_first,
     )
     from .gaussian import affordable as gaussian_affordable
     from .gaussian import gap_fill as gaussian_fill
@@ -485,6 +485,9 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
     trnn_options.pop("rate", None)
     if observed.all():
         return np.array(matrix, dtype=np.float64), None
+    # The per-gap models and PCA see the short gaps filled first (one spline fill for
+    # the three per mask: see gapwise.ShortRunsFirst).
+    short_runs_first = ShortRunsFirst()
     # In the windows of long clips (``skip_unweighted``), the validation run's TrNN stops
     # at a tolerance ten times looser than the fill's.
     loose = {**trnn_options, "tol": 10 * trnn_options.get("tol", LOWRANK_TOL)}
@@ -493,8 +496,6 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
         "spline": spline,
         "quintic": partial(odd_spline_fill, degree=5),
         "septic": partial(odd_spline_fill, degree=7),
-        # The per-gap models (and PCA below) see the short gaps filled first: see
-        # gapwise.short_runs_first.
         "regression": short_runs_first(regression_fill),
     }
     if gaussian_affordable(observed):

@@ -679,3 +679,23 @@ def test_held_short_runs_leave_end_runs_missing_when_asked():
     assert every[0, :2].all() and every[3, 28:].all() and every[0, 10:12].all()
     assert not inner[0, :2].any() and not inner[3, 28:].any() and inner[0:3, 10:12].all()
     assert not inner[0, 20:27].any() and not every[0, 20:27].any()        # 7 frames: long
+
+
+def test_candidates_wrapped_by_one_short_runs_first_share_its_spline_fill(monkeypatch):
+    from mocapfill.solvers import interp
+    from mocapfill.solvers.gapwise import ShortRunsFirst, regression_fill, rigid_fill
+
+    calls = []
+    cubic = interp.spline
+    monkeypatch.setattr(interp, "spline", lambda a, o: calls.append(1) or cubic(a, o))
+    rng = np.random.default_rng(1)
+    matrix = np.cumsum(rng.normal(size=(12, 200)), axis=1)
+    observed = _mask(4, 200, [(0, 50, 80), (1, 60, 62), (2, 70, 71)])
+    first = ShortRunsFirst()
+    wrapped = [first(rigid_fill), first(regression_fill)]
+    fills = [w(matrix, observed) for w in wrapped]
+    assert len(calls) == 1
+    for w, fill in zip(wrapped, fills):        # as each alone would fill
+        np.testing.assert_array_equal(fill, ShortRunsFirst()(w.__wrapped__)(matrix, observed))
+    wrapped[0](matrix.copy(), observed)        # other arrays: filled again
+    assert len(calls) == 4
