@@ -276,7 +276,9 @@ def printed_whole(text: str, column: Sequence[str], row: Sequence[str]) -> bool:
     The two readings of "as precisely" are those of :func:`find_cut_row`: as many decimals
     as any of ``column`` and ``row`` (fixed decimals), or as many significant digits as
     any of ``column`` and the fewest of ``row``, with no fewer decimals than the fewest
-    of ``column`` (``%g``); an exponent has no fewer digits than the fewest of ``column``.
+    of ``column`` (``%g``); an exponent has no fewer digits than the fewest of ``column``
+    (``1.74931e-014`` cut to ``1.74931e-01``). A cut just before the exponent
+    (``1.74931``) reads as whole where the column prints some values without one.
 
     Parameters
     ----------
@@ -294,8 +296,9 @@ def printed_whole(text: str, column: Sequence[str], row: Sequence[str]) -> bool:
     column_precision = [_precision(t) for t in column]
     row_precision = [_precision(t) for t in row]
     decimals, digits, exponent = _precision(text)
-    if exponent < min(e for _, _, e in column_precision):
-        return False
+    if exponent < min(e for _, _, e in column_precision) or 0 <= exponent < min(
+            (e for _, _, e in column_precision if e >= 0), default=0):
+        return False        # no exponent, or a shorter one, where the column prints one
     fixed = decimals >= max(d for d, _, _ in column_precision + row_precision)
     general = (digits >= max(g for _, g, _ in column_precision)
                and digits >= min((g for _, g, _ in row_precision), default=0)
