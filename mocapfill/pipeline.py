@@ -35,6 +35,8 @@ LEFT_WHOLE = "left: whole-clip missing"
 LEFT_NOT_SELECTED = "left: not selected"
 LEFT_NOT_MARKER = "left: not a marker"
 REJECTED_JUMP = "rejected: jump"
+LEFT_CHANNELS = "left: channels missing"
+LEFT_CUT = "left: cut short"
 
 # Default jump threshold: the larger of this floor (mm; MoCapTools rejects spline fills
 # missing a linear forward prediction by > 40 mm) and JUMP_FACTOR times the marker's
@@ -637,6 +639,9 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
     filled when every channel that moves the point was filled. The jump check runs on
     those points' positions: a point whose fill jumps has the fills of every channel
     moving it put back over its gap, and every gap that loses fills so is "rejected: jump".
+    A gap some of whose channels were left missing is "left: channels missing", or "left:
+    cut short" where the format kept a fill out (an AMC's value the file may have been cut
+    short inside: ``acclaim.with_channels``), so the counts say what the output holds.
     """
     from . import formats
     from .skeleton import Skeleton, observed_points
@@ -662,6 +667,9 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
             if _gap_status(gap, motion, options) == FILLED:
                 fill[start:stop, column] = True
     before = find_gaps(motion)
+    # moves[c, j]: channel c moves joint j
+    moves = ~observed_points(skeleton, ~np.eye(values.shape[1], dtype=bool))
+    refused = np.zeros_like(fill)       # fills the format kept out (with_channels)
     if fill.any():
         rows = values.shape[1]
         pad = (-rows) % 3  # methods read rows in x/y/z triples; constant rows carry nothing
@@ -682,13 +690,13 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
         jumping = [g for g, jumps in zip(done, _jumping(repaired.positions, motion, done,
                                                         options)) if jumps]
         if jumping:
-            moves = ~observed_points(skeleton, ~np.eye(values.shape[1], dtype=bool))
             for gap in jumping:
                 fill[gap.start:gap.stop, moves[:, gap.marker]] = False
             repaired = module.with_channels(motion, np.where(fill, solved, values),
                                             observed | fill)
             rejected = {(g.marker, g.start) for g in done
                         if not repaired.observed[g.start:g.stop, g.marker].all()}
+        refused = fill & ~repaired.source.state.observed
     else:
         repaired = motion
     outcomes = []
@@ -697,6 +705,7 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
         status = FILLED if done else _gap_status(gap, motion, options)
         if status == FILLED and not done:
             status = (REJECTED_JUMP if (gap.marker, gap.start) in rejected
-                      else "left: channels missing")
+                      else LEFT_CUT if refused[gap.start:gap.stop, moves[:, gap.marker]].any()
+                      else LEFT_CHANNELS)
         outcomes.append(GapOutcome(gap, status, options.method))
     return RepairResult(repaired, outcomes, time.perf_counter() - started)

@@ -260,23 +260,50 @@ def find_cut_row(lines: Sequence[str], row_lines: np.ndarray, delimiter: str,
         return index
     if text.lower() in MISSING_TOKENS:
         return -1           # missing whether cut or not
-    column = [_precision(cell_text(other[last]))
+    column = [cell_text(other[last])
               for other in (split_cells(split_ending(lines[int(i)])[0], delimiter)
                             for i in row_lines[:-1])
               if _holds_value(other, last)]
-    if not column:
-        return index
     marker = next((m for m in columns.tolist() if last in m), [])
-    row = [_precision(cell_text(cells[c])) for c in marker
-           if c != last and _holds_value(cells, c)]
+    row = [cell_text(cells[c]) for c in marker if c != last and _holds_value(cells, c)]
+    return -1 if printed_whole(text, column, row) else index
+
+
+def printed_whole(text: str, column: Sequence[str], row: Sequence[str]) -> bool:
+    """Whether ``text``, a number a file ends right after, is printed as precisely as the
+    numbers around it, so that it reads as whole rather than as cut short.
+
+    The two readings of "as precisely" are those of :func:`find_cut_row`: as many decimals
+    as any of ``column`` and ``row`` (fixed decimals), or as many significant digits as
+    any of ``column`` and the fewest of ``row``, with no fewer decimals than the fewest
+    of ``column`` (``%g``); an exponent has no fewer digits than the fewest of ``column``
+    (``1.74931e-014`` cut to ``1.74931e-01``). A cut just before the exponent
+    (``1.74931``) reads as whole where the column prints some values without one.
+
+    Parameters
+    ----------
+    text
+        The number, as printed.
+    column
+        The same value in the file's other rows or frames (a column, a bone's dof), as
+        printed; finite numbers only. When empty, nothing to compare with: False.
+    row
+        The values printed beside it (its marker's other coordinates, its bone's other
+        dofs); finite numbers only.
+    """
+    if not column:
+        return False
+    column_precision = [_precision(t) for t in column]
+    row_precision = [_precision(t) for t in row]
     decimals, digits, exponent = _precision(text)
-    if exponent < min(e for _, _, e in column):
-        return index
-    fixed = decimals >= max(d for d, _, _ in column + row)
-    general = (digits >= max(g for _, g, _ in column)
-               and digits >= min((g for _, g, _ in row), default=0)
-               and decimals >= min(d for d, _, _ in column))
-    return -1 if fixed or general else index
+    if exponent < min(e for _, _, e in column_precision) or 0 <= exponent < min(
+            (e for _, _, e in column_precision if e >= 0), default=0):
+        return False        # no exponent, or a shorter one, where the column prints one
+    fixed = decimals >= max(d for d, _, _ in column_precision + row_precision)
+    general = (digits >= max(g for _, g, _ in column_precision)
+               and digits >= min((g for _, g, _ in row_precision), default=0)
+               and decimals >= min(d for d, _, _ in column_precision))
+    return fixed or general
 
 
 def _precision(text: str) -> tuple[int, int, int]:

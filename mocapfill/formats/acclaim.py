@@ -23,11 +23,15 @@ at the joint *below* it, ``LeftLeg``).
 
 AMC files declare no frame count: a bone line absent from a frame, or a ``nan`` value, is a
 gap, not an error. A bone line with the wrong number of values is an error, except in the
-line a file ends inside: a file that does not end with a line ending may have been cut
-short anywhere in its last line, inside a number too (``-17.3198`` cut to ``-17.3``). The
-last value of that line is then read as missing (unless whitespace follows it), values
-absent from it are missing, and a frame number or bone name it holds alone starts no
-frame and is not read.
+line a file ends inside. A file that does not end with a line ending is read whole (many
+tools end a file so) unless its last line shows that the file was cut short inside it
+(``_looks_cut``): the bone line holds fewer values than its dofs, or its last value is not
+a number or is printed less precisely than the same dof in the other frames and the
+line's other values (``-17.3198`` cut to ``-17.3``; the test of CSV and TRC,
+``_text.printed_whole``). Then the last value of that line is read as missing (unless
+whitespace follows it), values absent from it are missing, and the source's notes say
+so; a frame number or bone name the last line holds alone starts no frame and is not
+read.
 
 Units: the ASF's ``:units length`` is a divisor of the file's lengths; by the CMU
 convention the unit before that division is the inch. By default positions stay in file
@@ -40,9 +44,13 @@ is not in the files; CMU captured at 120 Hz (option ``rate=``).
 Writing patches the AMC the Motion was read from: every line is echoed byte for byte
 except the cells whose observed state changed (filled: a number with 6 significant digits,
 like the CMU files; made missing: ``nan``). A filled cell whose bone line was absent from
-its frame gets a new line at the end of that frame. When the last frame changes and the
-file ended inside one of its bone lines, that line is written whole (its unread values
-as ``nan`` unless filled) with a line ending, so the output reads back as written.
+its frame gets a new line at the end of that frame (before the file's last line when that
+line has no line ending, so the output still ends without one). A patched file that ended
+without a line ending still does, its last line patched in place like any other. If the
+file was cut short inside its last line, that line's values the reader did not read (the
+possibly cut last one, the absent ones) are never written: :func:`with_channels` keeps
+them missing, a repair counts their gaps as ``left: cut short``, and the line keeps its
+bytes from its last value read on.
 
 An AMC holds joint angles only and is read with the ``.asf`` found beside it, so when the
 output's folder holds no ``.asf`` the reader would pick, the input's skeleton is copied
@@ -70,7 +78,7 @@ from ..skeleton import (
     positions_edited,
 )
 from . import skeleton_input_needed
-from ._text import LATIN1_BOM, latin1_label
+from ._text import LATIN1_BOM, latin1_label, printed_whole
 
 INCH_IN = {"in": 1.0, "mm": 25.4, "cm": 2.54, "m": 0.0254}
 NOT_DOF_CHANNELS = ("tx", "ty", "tz", "l")
@@ -349,7 +357,13 @@ class AmcSource:
     scale
         Factor from file lengths to ``Motion.positions``.
     cut_line
-        Index of the bone line the file ends inside (values possibly cut short), or -1.
+        Index of the last line when the file may have been cut short inside it (see
+        :func:`_looks_cut`), or -1: what it holds alone (a frame number, a bone name) is
+        not read, nor are its bone's values after the last it reads.
+    unread
+        The channel columns of that bone line not read (the last value, possibly cut
+        short, and the values absent from it): the last frame's cells there stay missing
+        (:func:`with_channels`), so that the writer never completes that line.
     """
 
     lines: tuple[str, ...]
@@ -362,36 +376,39 @@ class AmcSource:
     angle_factor: float
     scale: float = 1.0
     cut_line: int = -1
+    unread: tuple[int, ...] = ()
 
     @property
     def notes(self) -> tuple[str, ...]:
-        """What the reader worked around, for reports: a file ending inside a line."""
-        last = self.lines[-1] if self.lines else "\n"
-        if last.endswith(("\n", "\r")) or not last.split("#", 1)[0].strip():
+        """What the reader worked around, for reports: a file cut short inside a line."""
+        if self.cut_line < 0:
             return ()
-        return ("the file ends inside its last line (no final line ending): its last value "
-                "is not read (it may be cut short)",)
+        return ("the file ends inside its last line (no final line ending) and that line "
+                "looks cut short: its last value is not read",)
 
 
 def _parse_amc(path: Path, lines: tuple[str, ...], skeleton: Skeleton,
                line_columns: list[tuple[int, ...]]
-               ) -> tuple[np.ndarray, np.ndarray, list[int], list[int], bool, int]:
+               ) -> tuple[np.ndarray, np.ndarray, list[int], list[int], bool, int,
+                          tuple[int, ...]]:
     """Channel values, line index of each (frame, point), frame numbers and ends, whether
-    angles are degrees, and the bone line the file ends inside (-1 if none)."""
+    angles are degrees, the line the file was cut short inside (-1 if none) and the
+    channel columns of that line not read."""
     point_of = {name: j for j, name in enumerate(skeleton.names)}
     rows: list[np.ndarray] = []
     point_lines: list[np.ndarray] = []
     numbers: list[int] = []
     ends: list[int] = []
     in_degrees = False
-    cut_line = -1
+    cut_line, unread = -1, ()
     for i, line in enumerate(lines):
         text = (line.removeprefix(LATIN1_BOM) if i == 0 else line).split("#", 1)[0]
         tokens = text.split()
         if not tokens:
             continue
         # The file ends inside this line (no line ending, no comment the cut fell in):
-        # it may be cut short anywhere, its last token too unless whitespace follows it.
+        # it may have been cut short anywhere, its last token too unless whitespace
+        # follows it; a complete bone line is read whole all the same (_looks_cut).
         ends_inside = (i == len(lines) - 1 and not line.endswith(("\n", "\r"))
                        and "#" not in line)
         last_cut = ends_inside and not text[-1].isspace()
@@ -400,6 +417,7 @@ def _parse_amc(path: Path, lines: tuple[str, ...], skeleton: Skeleton,
             continue
         if len(tokens) == 1 and tokens[0].isdigit():
             if ends_inside:
+                cut_line = i
                 continue
             numbers.append(int(tokens[0]))
             rows.append(np.full(skeleton.n_channels, np.nan))
@@ -411,29 +429,91 @@ def _parse_amc(path: Path, lines: tuple[str, ...], skeleton: Skeleton,
         name = tokens[0]
         if name not in point_of or not line_columns[point_of[name]]:
             if last_cut and len(tokens) == 1:   # a bone name cut short
+                cut_line = i
                 continue
             what = "not in the ASF" if name not in point_of else "has no dof in the ASF"
             raise FormatError(path, f"line {i + 1}: bone {name!r} {what}")
-        columns = line_columns[point_of[name]]
+        point = point_of[name]
+        columns = line_columns[point]
         n_values = len(tokens) - 1
         if n_values > len(columns) or (n_values < len(columns) and not ends_inside):
             raise FormatError(path, f"line {i + 1}: {name} has {n_values} values, "
                                     f"its dof lists {len(columns)}")
-        read = tokens[1:n_values] if last_cut else tokens[1:]
+        cut = ends_inside and _looks_cut(lines, tokens, last_cut, len(columns),
+                                         [int(f[point]) for f in point_lines[:-1]])
+        read = tokens[1:n_values] if cut and last_cut else tokens[1:]
         try:
             rows[-1][list(columns[:len(read)])] = [float(t) for t in read]
         except ValueError:
             raise FormatError(path, f"line {i + 1}: non-numeric value for {name}") from None
-        point_lines[-1][point_of[name]] = i
+        point_lines[-1][point] = i
         ends[-1] = i
-        if ends_inside:
-            cut_line = i
+        if cut:
+            cut_line, unread = i, columns[len(read):]
     if not rows:
         raise FormatError(path, "no frames (no line holding a frame number)")
     values = np.array(rows)
     if np.isinf(values).any():
         raise FormatError(path, "infinite value in the motion")
-    return values, np.array(point_lines), numbers, ends, in_degrees, cut_line
+    return values, np.array(point_lines), numbers, ends, in_degrees, cut_line, unread
+
+
+def _looks_cut(lines: tuple[str, ...], tokens: list[str], last_cut: bool, n_columns: int,
+               earlier: list[int]) -> bool:
+    """Whether the bone line a file ends inside (without a line ending) may have been cut
+    short inside it.
+
+    Many tools end a file without a line ending, so such a line is read whole (its last
+    value is data, which a patch keeps byte for byte) unless it shows a cut: it holds
+    fewer values than its bone's dofs, or its last value (when no whitespace follows it)
+    is not a number (``-17.``, ``1e``) or is printed less precisely than the same dof in
+    the other frames and the line's other values (``-17.3198`` cut to ``-17.3``; see
+    :func:`._text.printed_whole`). A dof no other frame holds a number for gives nothing
+    to compare with: the value is taken as cut. As for CSV and TRC, doubt goes that way:
+    a ``%g`` value that happens to end in zeros (``-6.5109`` for -6.51090, where the
+    others print 6 significant digits) reads as cut and missing.
+
+    Parameters
+    ----------
+    lines
+        The file's lines.
+    tokens
+        The bone line's tokens: the bone's name and its values.
+    last_cut
+        Whether the line ends in its last token (no whitespace after it).
+    n_columns
+        The values a complete line of this bone holds.
+    earlier
+        The line index of this bone in each earlier frame, -1 where absent.
+    """
+    if len(tokens) - 1 < n_columns:
+        return True
+    if not last_cut:
+        return False
+    text = tokens[-1]
+    try:
+        value = float(text)
+    except ValueError:
+        return True
+    if not np.isfinite(value):
+        return False        # nan is missing whether cut or not; inf is refused anyway
+    column = [t for t in (_value_token(lines[k], n_columns) for k in earlier if k >= 0)
+              if t is not None]
+    row = [t for t in tokens[1:-1] if _is_finite(t)]
+    return not printed_whole(text, column, row)
+
+
+def _value_token(line: str, k: int) -> str | None:
+    """The ``k``-th token of a bone line (its name is token 0) when it is a finite number."""
+    tokens = line.split("#", 1)[0].split()
+    return tokens[k] if k < len(tokens) and _is_finite(tokens[k]) else None
+
+
+def _is_finite(token: str) -> bool:
+    try:
+        return bool(np.isfinite(float(token)))
+    except ValueError:
+        return False
 
 
 def _units(asf: _Asf, units: str | None) -> tuple[float, str]:
@@ -477,13 +557,13 @@ def read(path: Path, *, asf: Path | str | None = None, rate: float = 120.0,
         raise FormatError(asf_path, f"bad ASF: {exc}") from None
     scale, label = _units(skeleton_file, units)
     lines = tuple(path.read_bytes().decode("latin-1").splitlines(keepends=True))
-    values, point_lines, numbers, ends, in_degrees, cut_line = _parse_amc(
+    values, point_lines, numbers, ends, in_degrees, cut_line, unread = _parse_amc(
         path, lines, skeleton, line_columns)
     angle_factor = 1.0 if in_degrees else 180.0 / np.pi
     values[:, skeleton.rotation_channel] *= angle_factor
     source = AmcSource(lines, asf_path, tuple(channel_names), tuple(line_columns), point_lines,
                        tuple(ends), ChannelState.as_read(skeleton, values), angle_factor, scale,
-                       cut_line)
+                       cut_line, unread)
     positions, observed = source.state.points()
     return Motion(positions * scale, observed, tuple(latin1_label(n) for n in skeleton.names),
                   rate, label, source=source, path=path, first_frame=numbers[0])
@@ -565,9 +645,17 @@ def with_channels(motion: Motion, values: np.ndarray, observed: np.ndarray) -> M
 
     Cells observed before keep their stored value; newly observed cells take ``values``
     wrapped into the range their channel used; positions are recomputed by FK and the
-    source carries the new matrix for :func:`write`.
+    source carries the new matrix for :func:`write`. The cells of the bone line a file
+    was cut short inside that the reader did not read (``AmcSource.unread``) stay as
+    read, missing: the writer keeps that line byte for byte after its last value read,
+    so a fill there could not be written, and a repair counts their gaps as left.
     """
-    return motion_with_channels(motion, _source(motion), values, observed)
+    source = _source(motion)
+    if source.unread:
+        observed = np.array(observed, dtype=bool)   # a copy: the caller's mask is kept
+        last, unread = len(source.frame_ends) - 1, list(source.unread)
+        observed[last, unread] = source.state.original_observed[last, unread]
+    return motion_with_channels(motion, source, values, observed)
 
 
 # --------------------------------------------------------------------------- writing
@@ -582,20 +670,6 @@ def _cell_text(source: AmcSource, frame: int, column: int) -> str:
     return f"{value:.6g}"
 
 
-def _whole_line(source: AmcSource, frame: int, point: int, changed: np.ndarray) -> str:
-    """The bone line the file ended inside, written whole with a line ending: the values
-    read from it as they were, every other value as the channel matrix now holds it."""
-    line = source.lines[source.cut_line]
-    tokens = line.split()
-    texts = [tokens[k + 1] if source.state.observed[frame, c] and not changed[frame, c]
-             else _cell_text(source, frame, c)
-             for k, c in enumerate(source.line_columns[point])]
-    before = source.lines[source.cut_line - 1] if source.cut_line else ""
-    ending = before[len(before.rstrip("\r\n")):] or "\n"
-    indent = line[:len(line) - len(line.lstrip())]
-    return indent + " ".join([tokens[0], *texts]) + ending
-
-
 def write(motion: Motion, path: Path, **_options) -> None:
     """Write a repaired AMC by patching the file the Motion was read from.
 
@@ -603,7 +677,8 @@ def write(motion: Motion, path: Path, **_options) -> None:
     ------
     FormatError
         When the Motion did not come from AMC, or its positions were edited without going
-        through :func:`with_channels`.
+        through :func:`with_channels` (or its channels were, in the values of a line the
+        file was cut short inside that the reader did not read).
     """
     source = _source(motion, path)
     differing = positions_edited(motion, source.state)
@@ -614,11 +689,14 @@ def write(motion: Motion, path: Path, **_options) -> None:
     lines = list(source.lines)
     added: dict[int, list[str]] = {}
     changed = source.state.changed_cells()
-    last = len(source.frame_ends) - 1
-    if source.cut_line >= 0 and changed[last].any():
-        point = int(np.flatnonzero(source.point_lines[last] == source.cut_line)[0])
-        lines[source.cut_line] = _whole_line(source, last, point, changed)
-        changed[last, list(source.line_columns[point])] = False     # written just now
+    if changed[len(source.frame_ends) - 1, list(source.unread)].any():
+        # with_channels keeps them missing; a value after the last one read could only
+        # be written by completing a line that may hold a number cut short
+        raise FormatError(path, "values the file was cut short before were changed; "
+                                "AMC channels are changed through acclaim.with_channels")
+    # The line ending new bone lines get: the file's, also where it ends without one.
+    ending = next((line[len(line.rstrip("\r\n")):] for line in reversed(lines)
+                   if line.endswith(("\n", "\r"))), "\n")
     for frame in np.flatnonzero(changed.any(axis=1)):
         for point, columns in enumerate(source.line_columns):
             touched = [k for k, c in enumerate(columns) if changed[frame, c]]
@@ -630,11 +708,17 @@ def write(motion: Motion, path: Path, **_options) -> None:
                 lines[index] = patch_tokens(lines[index], cells)
             else:
                 end = source.frame_ends[frame]
-                newline = lines[end][len(lines[end].rstrip("\r\n")):] or "\n"
+                newline = lines[end][len(lines[end].rstrip("\r\n")):] or ending
                 texts = [_cell_text(source, frame, c) for c in columns]
                 added.setdefault(end, []).append(
                     " ".join([source.state.skeleton.names[point], *texts]) + newline)
-    if added and not lines[-1].endswith(("\n", "\r")) and (len(lines) - 1) in added:
-        lines[-1] += "\n"
-    out = [text for i, line in enumerate(lines) for text in (line, *added.get(i, []))]
+    out = []
+    for i, line in enumerate(lines):
+        new = added.get(i, [])
+        if line.endswith(("\n", "\r")):
+            out += [line, *new]
+        else:
+            # The file's last line, without a line ending: a frame's new bone lines go
+            # before it, so that it stays last and keeps its lack of a final line ending.
+            out += [*new, line]
     Path(path).write_bytes("".join(out).encode("latin-1"))

@@ -216,10 +216,26 @@ def cut(amc: Path, n_bytes: int) -> Path:
     return amc
 
 
+# The values of this file are printed with two decimals, as a cut value is not.
+TWO_DECIMALS = [frame(1, "1.00 2.00 3.00 4.00 5.00 6.00", "10.50", "20.25 30.75"),
+                frame(2, "1.00 2.00 3.00 4.00 5.00 6.00", "11.50", "10.50 25.75")]
+
+
 def test_an_amc_cut_inside_its_last_number_reads_that_value_as_missing(tmp_path):
-    amc = cut(write_pair(tmp_path, [frame(1), frame(2, hand="10 25")]), 2)  # "hand 10 2"
-    values, observed = acclaim.channels(acclaim.read(amc))
-    assert observed[1].tolist() == [True] * 8 + [False] and values[1, 7] == 10
+    amc = cut(write_pair(tmp_path, TWO_DECIMALS), 2)  # "hand 10.50 25.7"
+    motion = acclaim.read(amc)
+    values, observed = acclaim.channels(motion)
+    assert observed[1].tolist() == [True] * 8 + [False] and values[1, 7] == 10.5
+    assert "looks cut short" in motion.source.notes[0]
+
+
+@pytest.mark.parametrize("last", ["25.7", "25.", "25", "2", "2e", "-"])
+def test_a_last_value_printed_less_precisely_than_its_dof_reads_as_missing(tmp_path, last):
+    amc = write_pair(tmp_path, TWO_DECIMALS)
+    amc.write_text(amc.read_text().removesuffix("25.75\n") + last)
+    motion = acclaim.read(amc)
+    assert acclaim.channels(motion)[1][1].tolist() == [True] * 8 + [False]
+    assert motion.source.notes
 
 
 def test_an_amc_cut_inside_its_last_line_reads_absent_values_as_missing(tmp_path):
@@ -229,9 +245,24 @@ def test_an_amc_cut_inside_its_last_line_reads_absent_values_as_missing(tmp_path
 
 
 def test_every_cut_of_an_amc_reads_as_a_prefix_of_its_values_or_fails(tmp_path):
-    amc = write_pair(tmp_path, [frame(1, "1.5 2.25 3 4 5 6", "10.5", "20.25 30.125"),
-                                frame(2, "7 8 9 10 11 12", "nan", "-40.5 50.75")])
+    # Printed like a real AMC, each value with the same decimals (an integer "12" cut to
+    # "1" would be as precise as the "6" above it: no reader can tell that cut).
+    amc = write_pair(tmp_path, [
+        frame(1, "1.500 2.250 3.000 4.000 5.000 6.000", "10.500", "20.250 30.125"),
+        frame(2, "7.000 8.000 9.000 10.000 11.000 12.000", "nan", "-40.500 50.750")])
     assert_every_cut_reads_as_a_prefix(amc, acclaim.channels)
+
+
+def test_every_cut_of_a_real_amcs_last_line_reads_its_last_value_as_missing(tmp_path):
+    (tmp_path / "09.asf").write_bytes(shared_file("cmu/09.asf").read_bytes())
+    data = shared_file("cmu/09_12.amc").read_bytes()
+    assert data.endswith(b"\nltoes 8.94154\r\n")
+    amc = tmp_path / "09_12.amc"
+    for kept in ("ltoes 8.9415", "ltoes 8.941", "ltoes 8.9", "ltoes 8.", "ltoes 8"):
+        amc.write_bytes(data.removesuffix(b"ltoes 8.94154\r\n") + kept.encode())
+        motion = acclaim.read(amc)
+        assert not motion.observed[-1, motion.labels.index("ltoes")], kept
+        assert motion.source.notes, kept
 
 
 @pytest.mark.parametrize("tail", ["3", "han"])
@@ -313,20 +344,131 @@ def test_filled_bone_absent_from_its_frame_gets_a_line_at_the_frames_end(tmp_pat
     assert out.read_text() == amc.read_text().replace("arm 0\n3\n", "arm 0\nhand 0 0\n3\n")
 
 
-def test_filling_the_line_an_amc_ends_inside_writes_that_line_whole(tmp_path):
-    amc = cut(write_pair(tmp_path, [frame(1, hand="10 20"), frame(2, hand="10 25")]), 2)
-    motion = acclaim.read(amc)
+def filled_everywhere(motion, out: Path) -> Path:
+    """Write ``motion`` with every missing channel cell filled by interpolation."""
     values, observed = acclaim.channels(motion)
-    out = tmp_path / "out.amc"
     acclaim.write(acclaim.with_channels(motion, fill_by_interpolation(values, observed),
                                         np.ones_like(observed)), out)
-    assert out.read_text() == amc.read_text().removesuffix("hand 10 2") + "hand 10 20\n"
-    assert acclaim.read(out).observed.all()
-    # The reader's note reaches reports (info, repair), as for TRC and CSV; none once whole.
+    return out
+
+
+def test_a_repair_leaves_the_line_an_amc_was_cut_inside_as_it_was(tmp_path):
+    amc = write_pair(tmp_path, TWO_DECIMALS[:1] + [TWO_DECIMALS[1].replace("10.50", "nan")])
+    amc = cut(amc, 2)                                               # "hand nan 25.7"
+    motion = acclaim.read(amc)
+    out = filled_everywhere(motion, tmp_path / "out.amc")
+    # The read nan is filled in place; "25.7", maybe cut short, is neither filled nor
+    # completed, and no line ending is added.
+    assert out.read_text() == amc.read_text().removesuffix("hand nan 25.7") + "hand 20.25 25.7"
+    assert acclaim.channels(acclaim.read(out))[1][1].tolist() == [True] * 8 + [False]
+    # The reader's note reaches reports (info, repair), as for TRC and CSV, each time.
     from mocapfill.report import reader_notes
 
-    assert reader_notes(motion) and "ends inside its last line" in reader_notes(motion)[0]
-    assert reader_notes(acclaim.read(out)) == ()
+    assert "looks cut short" in reader_notes(motion)[0]
+    assert reader_notes(acclaim.read(out)) == reader_notes(motion)
+
+
+def test_a_repair_leaves_the_absent_values_of_a_cut_line_absent(tmp_path):
+    amc = cut(write_pair(tmp_path, TWO_DECIMALS), 6)                # "hand 10.50"
+    out = filled_everywhere(acclaim.read(amc), tmp_path / "out.amc")
+    assert out.read_bytes() == amc.read_bytes()
+
+
+def test_with_channels_keeps_the_values_of_a_cut_line_it_did_not_read_missing(tmp_path):
+    motion = acclaim.read(cut(write_pair(tmp_path, TWO_DECIMALS), 2))
+    values, observed = acclaim.channels(motion)
+    filled = acclaim.with_channels(motion, fill_by_interpolation(values, observed),
+                                   np.ones_like(observed))
+    assert motion.source.unread == (8,)
+    assert filled.source.state.observed.sum() == observed.size - 1
+    assert not filled.source.state.observed[1, 8]
+
+
+# --------------------------------------------------------- no final line ending, not cut
+
+def no_final_ending(tmp_path: Path, frames: list[str] = TWO_DECIMALS) -> Path:
+    amc = write_pair(tmp_path, frames)
+    amc.write_bytes(amc.read_bytes().removesuffix(b"\n"))
+    return amc
+
+
+def test_an_amc_without_a_final_line_ending_reads_its_last_value_as_data(tmp_path):
+    motion = acclaim.read(no_final_ending(tmp_path))
+    values, observed = acclaim.channels(motion)
+    assert observed.all() and values[1, 8] == 25.75
+    assert motion.source.notes == () and motion.source.cut_line == -1
+
+
+def test_a_repair_keeps_the_last_line_of_an_amc_without_a_final_line_ending(tmp_path):
+    amc = no_final_ending(tmp_path, [TWO_DECIMALS[0], TWO_DECIMALS[0].replace("1\n", "2\n")
+                                     .replace("10.50", "nan"), TWO_DECIMALS[1]
+                                     .replace("2\n", "3\n")])
+    out = filled_everywhere(acclaim.read(amc), tmp_path / "out.amc")
+    assert out.read_text() == amc.read_text().replace("arm nan", "arm 11")
+    assert out.read_text().endswith("hand 10.50 25.75")           # no line ending added
+    assert acclaim.read(out).observed.all()
+
+
+def test_a_bone_line_filled_into_the_last_frame_goes_before_the_unterminated_last_line(
+        tmp_path):
+    amc = no_final_ending(tmp_path, [TWO_DECIMALS[0], frame(2, "1.00 2.00 3.00 4.00 5.00 6.00",
+                                                            None, "10.50 25.75")])
+    out = filled_everywhere(acclaim.read(amc), tmp_path / "out.amc")
+    assert out.read_text() == amc.read_text().replace("hand 10.50 25.75",
+                                                      "arm 10.5\nhand 10.50 25.75")
+    assert acclaim.read(out).observed.all() and acclaim.read(out).source.notes == ()
+
+
+@pytest.mark.parametrize("ends", ["hold", "extrapolate"])
+def test_an_end_gap_repair_keeps_the_last_value_of_an_amc_without_a_final_ending(tmp_path,
+                                                                                ends):
+    from mocapfill.pipeline import RepairOptions, repair
+
+    frames = [frame(f, "1.00 2.00 3.00 4.00 5.00 6.00", f"{10 + f}.50",
+                    "10.50 nan" if 3 <= f < 6 else f"10.50 {20 + f}.25") for f in range(1, 7)]
+    motion = acclaim.read(no_final_ending(tmp_path, frames))
+    assert not motion.observed.all() and acclaim.channels(motion)[1][5].all()
+    result = repair(motion, RepairOptions(space="channels", method="linear", ends=ends))
+    out = tmp_path / "out.amc"
+    acclaim.write(result.motion, out)
+    assert out.read_text().endswith("hand 10.50 26.25")           # kept, no line ending
+    assert acclaim.read(out).observed.all() and result.left == 0
+
+
+def test_an_end_gap_repair_leaves_a_cut_last_value_and_counts_its_gap_left(tmp_path):
+    from mocapfill.pipeline import LEFT_CUT, RepairOptions, repair
+
+    frames = [frame(f, "1.00 2.00 3.00 4.00 5.00 6.00", f"{10 + f}.50",
+                    f"10.50 {20 + f}.25") for f in range(1, 7)]
+    amc = cut(write_pair(tmp_path, frames), 3)                      # "hand 10.50 26.2"
+    result = repair(acclaim.read(amc), RepairOptions(space="channels", method="linear",
+                                                      ends="hold"))
+    out = tmp_path / "out.amc"
+    acclaim.write(result.motion, out)
+    assert out.read_bytes() == amc.read_bytes()
+    assert [o.status for o in result.gaps] == [LEFT_CUT] and result.filled == 0
+
+
+def test_cmu_09_12_without_its_final_line_ending_reads_its_last_value(tmp_path):
+    (tmp_path / "09.asf").write_bytes(shared_file("cmu/09.asf").read_bytes())
+    amc = tmp_path / "09_12.amc"
+    amc.write_bytes(shared_file("cmu/09_12.amc").read_bytes().rstrip(b"\r\n"))
+    motion = acclaim.read(amc)                                      # ends "ltoes 8.94154"
+    assert motion.observed.all() and motion.source.notes == ()
+    ltoes = motion.source.channel_names.index("ltoes.rx")
+    assert acclaim.channels(motion)[0][-1, ltoes] == pytest.approx(8.94154)
+
+
+def test_cmu_10_01_cut_before_its_final_line_ending_keeps_its_last_line(tmp_path):
+    (tmp_path / "10.asf").write_bytes(shared_file("cmu/10.asf").read_bytes())
+    amc = tmp_path / "10_01.amc"
+    amc.write_bytes(shared_file("cmu/10_01.amc").read_bytes().rstrip(b"\r\n"))
+    # "ltoes -6.5109": 5 significant digits where the file prints 6, as "-6.51093" cut
+    # short would be: set aside, noted, and kept as it was.
+    motion = acclaim.read(amc)
+    assert motion.source.notes and not motion.observed[-1, motion.labels.index("ltoes")]
+    out = filled_everywhere(motion, tmp_path / "out.amc")
+    assert out.read_bytes() == amc.read_bytes()
 
 
 def test_radian_amc_is_written_back_in_radians(tmp_path):

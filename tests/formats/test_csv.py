@@ -15,6 +15,7 @@ from mocapfill.formats import csv as csvfmt
 from mocapfill.formats._text import (
     cell_text,
     parse_number,
+    printed_whole,
     read_lines,
     row_cells,
     split_cells,
@@ -764,6 +765,13 @@ def test_ktk_real_file_reads_39_points():
     motion = csvfmt.read(shared_file("csv/ktk-tennis_serve.csv"))
     assert (motion.n_markers, motion.units, motion.source.kind) == (39, "m", "ktk")
     assert motion.rate == pytest.approx(50)
+
+
+@pytest.mark.parametrize(("text", "whole"), [("1.74931e-014", True), ("1.74931e-01", False),
+                                             ("1.74931e-0", False), ("0.654321", True)])
+def test_a_last_value_with_a_shorter_exponent_than_its_column_reads_as_cut(text, whole):
+    # CMU prints near-zero angles with three-digit exponents, and others without one.
+    assert printed_whole(text, ["6.07287e-014", "0.123456", "-3.84276e-014"], []) is whole
 
 
 def test_ktk_real_file_without_a_final_line_ending_reads_its_last_row_whole():
