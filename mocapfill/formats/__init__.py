@@ -175,7 +175,8 @@ def for_output(motion: Motion, path: str | os.PathLike) -> tuple[Motion, tuple[s
     take them as evidence for the markers. A new TRC, CSV or C3D file gets lengths in mm
     when the clip's unit has a known length but is not a plain unit name (``in/0.45``, the
     CMU AMC unit: a TRC ``Units`` or C3D ``POINT:UNITS`` no other tool reads); a unit with
-    no known length (a BVH's ``unknown``) is kept, with a note saying so. NPZ keeps all.
+    no known length (a BVH's ``unknown``) is kept, with a note saying so. A TRC or CSV of
+    a clip without a frame rate (0 Hz) is written at 120 Hz, with a note. NPZ keeps all.
 
     Parameters
     ----------
@@ -212,6 +213,10 @@ def for_output(motion: Motion, path: str | os.PathLike) -> tuple[Motion, tuple[s
     elif units.lower() not in MM_PER_UNIT:
         notes.append(f"lengths in {units} converted to mm (1 {units} = {factor:.6g} mm)")
         motion = motion.replace(positions=motion.positions * factor, units="mm")
+    if suffix in MARKER_ONLY_FORMATS and not (np.isfinite(motion.rate) and motion.rate > 0):
+        # A TRC states a DataRate and a CSV a Time column: the writers fall back on 120 Hz
+        # (_text.writable_rate), which the user should hear of, not find in the file.
+        notes.append("the clip's frame rate is not known (0 Hz): written as 120 Hz")
     return motion, tuple(notes)
 
 

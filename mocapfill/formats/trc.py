@@ -57,7 +57,7 @@ values, each marker name followed by three tabs, ``X1 Y1 Z1`` ... numbered from 
 blank line, then rows whose cells are each followed by a tab; ``Frame#`` counts from
 ``first_frame`` (= ``OrigDataStartFrame``), time from 0, missing samples are empty
 cells, coordinates the shortest text that reads back exactly. A clip without a rate (0
-Hz, a C3D with no ``POINT:RATE``) is written at 120 Hz; a clip without markers is
+Hz, a C3D with no ``POINT:RATE``) is written at 120 Hz, with a note; a clip without markers is
 refused.
 
 Marker names in a new file have the characters OpenSim rejects in component names

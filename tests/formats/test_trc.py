@@ -340,3 +340,16 @@ def test_every_shared_trc_converts_to_an_opensim_file_and_back(path: Path, tmp_p
     np.testing.assert_array_equal(back.observed, motion.observed)
     np.testing.assert_array_equal(back.positions, motion.positions)
     assert back.rate == motion.rate
+
+
+@pytest.mark.parametrize("suffix", [".trc", ".csv"])
+def test_a_clip_without_a_rate_is_written_at_120_hz_with_a_note(tmp_path, suffix):
+    # A C3D without POINT:RATE reads as 0 Hz; a TRC's DataRate and a CSV's Time column
+    # need one, and the user must hear that it was invented.
+    from tests.helpers import smooth_clip
+
+    clip = smooth_clip(30, 3)
+    notes = formats.write(clip.replace(rate=0.0), tmp_path / f"a{suffix}")
+    assert notes == ("the clip's frame rate is not known (0 Hz): written as 120 Hz",)
+    assert formats.read(tmp_path / f"a{suffix}").rate == 120.0
+    assert formats.write(clip, tmp_path / f"b{suffix}") == ()
