@@ -34,7 +34,10 @@ def read(path: Path, **_options) -> Motion:
         raise FormatError(path, "not an .npz archive (no zip signature)")
     try:
         with np.load(path, allow_pickle=False) as data:
-            positions = np.asarray(data["positions"], dtype=np.float64)
+            positions = data["positions"]
+            if np.iscomplexobj(positions):      # float64 would drop the imaginary part
+                raise FormatError(path, "positions must be real numbers, got complex ones")
+            positions = np.asarray(positions, dtype=np.float64)
             observed = (np.asarray(data["observed"], bool) if "observed" in data
                         else np.isfinite(positions).all(axis=2))
             labels = ([_text(s) for s in np.asarray(data["labels"]).reshape(-1)]

@@ -36,6 +36,15 @@ def test_a_negative_or_non_finite_rate_is_a_format_error(tmp_path, rate):
     assert str(caught.value).startswith(f"{path}: rate is {rate}, not a frame rate")
 
 
+def test_complex_positions_are_a_format_error(tmp_path):
+    # Read as float64 they lost their imaginary part without a word.
+    path = tmp_path / "clip.npz"
+    np.savez(path, positions=np.ones((3, 2, 3)) * (1 + 2j))
+    with pytest.raises(FormatError) as caught:
+        npz.read(path)
+    assert str(caught.value) == f"{path}: positions must be real numbers, got complex ones"
+
+
 def test_first_frame_and_model_outputs_survive_a_round_trip(tmp_path):
     motion = formats.read(save(tmp_path / "clip.npz"))
     motion = motion.replace(first_frame=244, fillable=np.array([True, False]))
