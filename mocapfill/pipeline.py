@@ -37,6 +37,7 @@ LEFT_NOT_MARKER = "left: not a marker"
 REJECTED_JUMP = "rejected: jump"
 LEFT_CHANNELS = "left: channels missing"
 LEFT_CUT = "left: cut short"
+LEFT_NO_WINDOW = "left: missing through a window"
 
 # Default jump threshold: the larger of this floor (mm; MoCapTools rejects spline fills
 # missing a linear forward prediction by > 40 mm) and JUMP_FACTOR times the marker's
@@ -226,12 +227,13 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
     scale = UnitScale.fit(matrix, observed)
     scaled = scale.forward(np.where(observed, matrix, 0.0))
     fn = get_method(method)
+    validation = None
     try:
         if borrowed is not None:
             solved, validation = fn.windowed(scaled, observed, borrowed=borrowed,
                                              skip_unweighted=True, **solver_options)
-            return scale.inverse(solved), validation
-        solved = fn(scaled, observed, **solver_options)
+        else:
+            solved = fn(scaled, observed, **solver_options)
     except (np.linalg.LinAlgError, FloatingPointError) as exc:
         # A numerical breakdown (found by fuzzing: coordinates near the float32 limit in a
         # corrupt C3D made an SVD fail) is a clean failure of this clip, not a traceback.
@@ -241,7 +243,12 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
             "the file's coordinates (corrupt or absurd values)"
         raise SolverError(f"method {method!r} broke down numerically on this clip ({exc}); "
                           f"check {suspects}") from None
-    return scale.inverse(solved)
+    solved = scale.inverse(solved)
+    # Checked here, so that the only non-finite fills after a long clip's windows are
+    # assembled are the samples no window could fill (complete_matrix).
+    if not np.isfinite(solved).all(where=~observed):
+        raise SolverError(f"method {method!r} returned non-finite values")
+    return solved if borrowed is None else (solved, validation)
 
 
 def window_bounds(n_frames: int, window: int, overlap: int) -> list[tuple[int, int]]:
@@ -326,6 +333,32 @@ def _window_fills(matrix: np.ndarray, observed: np.ndarray, bounds: list[tuple[i
         yield fill
 
 
+# Weight of a window's fill of a gap that runs into the window's edge inside the clip
+# (an extrapolation from one side), against 1 for a gap the window holds whole: where a
+# neighbouring window holds the gap whole, its fill decides.
+EDGE_GAP_WEIGHT = 1e-3
+
+
+def _window_trust(observed: np.ndarray, at_start: bool, at_end: bool) -> np.ndarray:
+    """(rows, frames) weight of one window's fill: 1, EDGE_GAP_WEIGHT on the missing runs
+    that touch an edge of the window which is not the clip's (``at_start``/``at_end``:
+    the window begins or ends the clip), and 0 on every frame of a row the window never
+    observes (it knows nothing of that marker: its fill there was the scale's centre)."""
+    trust = np.ones(observed.shape)
+    seen = observed.any(axis=1)
+    trust[~seen] = 0.0
+    rows = np.flatnonzero(seen)
+    if not at_start:
+        first = observed[rows].argmax(axis=1)           # frames before it: a run at the edge
+        edge = np.arange(observed.shape[1])[None, :] < first[:, None]
+        trust[rows] = np.where(edge, EDGE_GAP_WEIGHT, trust[rows])
+    if not at_end:
+        last = observed.shape[1] - 1 - observed[rows, ::-1].argmax(axis=1)
+        edge = np.arange(observed.shape[1])[None, :] > last[:, None]
+        trust[rows] = np.where(edge, EDGE_GAP_WEIGHT, trust[rows])
+    return trust
+
+
 def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trnn", *,
                     window_frames: int = WINDOW_FRAMES, window_overlap: int = WINDOW_OVERLAP,
                     overwrite: bool = False, **solver_options) -> np.ndarray:
@@ -333,9 +366,13 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
 
     Clips longer than ``window_frames`` are solved in windows overlapping by
     ``window_overlap`` frames, blended with linear cross-fades, so memory stays bounded and
-    time linear in the clip length (0 disables windowing). Observed entries of the result
-    equal ``matrix`` exactly. With ``overwrite`` the fills are written into ``matrix``
-    itself (its missing entries), which is returned: no second clip-sized array.
+    time linear in the clip length (0 disables windowing). Row by row, a window that never
+    observes a row gives no fill for it, and a gap running into a window's inner edge gets
+    little weight from that window (:func:`_window_trust`); a missing sample no window can
+    fill (a marker missing through a whole window and the overlaps around it) stays NaN.
+    Observed entries of the result equal ``matrix`` exactly. With ``overwrite`` the fills
+    are written into ``matrix`` itself (its missing entries), which is returned: no second
+    clip-sized array.
     """
     n = matrix.shape[1]
     out = matrix if overwrite else np.array(matrix, dtype=np.float64)
@@ -351,7 +388,8 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
     # frames; the frames before the next window's start are then final and written out
     # (a window only reads frames no earlier window has written). The sums are those of
     # accumulating every window into one clip-sized array, in the same order.
-    pending, pending_weight = np.zeros((matrix.shape[0], 0)), np.zeros(0)
+    rows = matrix.shape[0]
+    pending, pending_weight = np.zeros((rows, 0)), np.zeros((rows, 0))
     progress = _WINDOW_PROGRESS.get()
     if progress is not None:
         progress(0, len(bounds))
@@ -362,17 +400,19 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
             w[:window_overlap] = ramp
         if stop < n:
             w[-window_overlap:] = ramp[::-1]
-        total = w * fill
+        weight = w * _window_trust(observed[:, start:stop], start == 0, stop == n)
+        total = weight * fill
         del fill
-        weight = w.copy()
         carried = pending.shape[1]
         total[:, :carried] += pending
-        weight[:carried] += pending_weight
+        weight[:, :carried] += pending_weight
         final = (bounds[index + 1][0] if index + 1 < len(bounds) else stop) - start
-        total[:, :final] /= weight[:final]
-        np.copyto(out[:, start:start + final], total[:, :final],
+        done = total[:, :final]
+        np.divide(done, weight[:, :final], out=done, where=weight[:, :final] > 0)
+        done[weight[:, :final] == 0] = np.nan        # no window could fill these
+        np.copyto(out[:, start:start + final], done,
                   where=~observed[:, start:start + final])
-        pending, pending_weight = total[:, final:].copy(), weight[final:].copy()
+        pending, pending_weight = total[:, final:].copy(), weight[:, final:].copy()
         del total
         release_memory()            # the window's freed arrays, back to the system
         if progress is not None:
@@ -590,6 +630,15 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
         if gap.at_start or gap.at_end:
             _fill_ends(filled[:, gap.marker, :], motion.observed[:, gap.marker], gap,
                        options.ends)
+    # A long clip's windows leave NaN where none of them observes the marker (missing
+    # through a whole window and the overlaps around it): such a gap is left, whole.
+    unfilled = ~finite_samples(filled) & ~motion.observed
+    if unfilled.any():
+        for index in to_check:
+            gap = outcomes[index].gap
+            if unfilled[gap.start:gap.stop, gap.marker].any():
+                outcomes[index] = GapOutcome(gap, LEFT_NO_WINDOW, options.method)
+        to_check = [index for index in to_check if outcomes[index].status == FILLED]
     jumping = _jumping(filled, motion, [outcomes[i].gap for i in to_check], options)
     kept = []
     for index, jumps in zip(to_check, jumping):
@@ -670,6 +719,7 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
     # moves[c, j]: channel c moves joint j
     moves = ~observed_points(skeleton, ~np.eye(values.shape[1], dtype=bool))
     refused = np.zeros_like(fill)       # fills the format kept out (with_channels)
+    windowless = np.zeros_like(fill)    # runs no window of a long clip could fill
     if fill.any():
         rows = values.shape[1]
         pad = (-rows) % 3  # methods read rows in x/y/z triples; constant rows carry nothing
@@ -681,6 +731,12 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
                 if fill[start, column] and (start == 0 or stop == values.shape[0]):
                     _fill_channel_ends(solved[:, column], observed[:, column], start, stop,
                                        options.ends)
+        # A long clip's windows leave NaN where none observes the channel: its run is left.
+        for column in np.flatnonzero((fill & ~np.isfinite(solved)).any(axis=0)):
+            for start, stop in missing_runs(observed[:, column]):
+                if not np.isfinite(solved[start:stop, column]).all():
+                    fill[start:stop, column] = False
+                    windowless[start:stop, column] = True
         repaired = module.with_channels(motion, np.where(fill, solved, values),
                                         observed | fill)
         # The jump check, on the points the filled channels move: a point whose fill
@@ -706,6 +762,8 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
         if status == FILLED and not done:
             status = (REJECTED_JUMP if (gap.marker, gap.start) in rejected
                       else LEFT_CUT if refused[gap.start:gap.stop, moves[:, gap.marker]].any()
+                      else LEFT_NO_WINDOW
+                      if windowless[gap.start:gap.stop, moves[:, gap.marker]].any()
                       else LEFT_CHANNELS)
         outcomes.append(GapOutcome(gap, status, options.method))
     return RepairResult(repaired, outcomes, time.perf_counter() - started)

@@ -301,7 +301,9 @@ def test_windowed_solve_is_close_to_the_whole_clip_solve():
 def test_windows_are_streamed_into_the_clip_as_if_accumulated_and_divided():
     # 2650 frames in windows of 1000 with 200 of overlap: the last window starts at 1650,
     # so three windows cover frames 1650–1800 and the weights there do not sum to 1.
-    from mocapfill.pipeline import _solve_scaled, complete_matrix, window_bounds
+    # The weights are row by row (_window_trust): the gap of marker 1 runs into the second
+    # window's first frame.
+    from mocapfill.pipeline import _solve_scaled, _window_trust, complete_matrix, window_bounds
 
     truth = smooth_clip(2650, 6)
     gapped = truth
@@ -310,7 +312,7 @@ def test_windows_are_streamed_into_the_clip_as_if_accumulated_and_divided():
     matrix, observed = gapped.matrix()
     bounds = window_bounds(2650, 1000, 200)
     assert [a for a, _ in bounds] == [0, 800, 1600, 1650]
-    total, weight = np.zeros(matrix.shape), np.zeros(2650)
+    total, weight = np.zeros(matrix.shape), np.zeros(matrix.shape)
     ramp = np.linspace(0.0, 1.0, 202)[1:-1]
     for start, stop in bounds:
         w = np.ones(stop - start)
@@ -318,9 +320,10 @@ def test_windows_are_streamed_into_the_clip_as_if_accumulated_and_divided():
             w[:200] = ramp
         if stop < 2650:
             w[-200:] = ramp[::-1]
+        w = w * _window_trust(observed[:, start:stop], start == 0, stop == 2650)
         total[:, start:stop] += w * _solve_scaled(matrix[:, start:stop],
                                                   observed[:, start:stop], "spline", {})
-        weight[start:stop] += w
+        weight[:, start:stop] += w
     expected = np.where(observed, matrix, total / weight)
     kept = matrix.copy()
     got = complete_matrix(matrix, observed, "spline", window_frames=1000, window_overlap=200)
@@ -330,6 +333,46 @@ def test_windows_are_streamed_into_the_clip_as_if_accumulated_and_divided():
                               window_overlap=200, overwrite=True)
     assert inplace is matrix
     np.testing.assert_array_equal(inplace, expected)
+
+
+def test_a_window_gives_no_fill_to_a_marker_it_never_sees_and_little_past_its_edges():
+    # Windows [0, 1000), [800, 1800), [1600, 2600), [2000, 3000). Marker 0 is missing over
+    # 800–2200: the second window never sees it, and the first and third see the gap run
+    # into their edges. Before, the second window filled it with the scale's centre (the
+    # origin: 0, 0, 0 mm) and the cross-fades carried that into the neighbours' frames.
+    from mocapfill.pipeline import EDGE_GAP_WEIGHT, _window_trust, complete_matrix
+
+    truth = smooth_clip(3000, 6)
+    matrix, observed = with_gap(with_gap(truth, 0, 800, 2200), 1, 1700, 1750).matrix()
+    got = complete_matrix(matrix, observed, "spline", window_frames=1000,
+                          window_overlap=200)
+    # Frames 1000–1600 lie in the second window alone among those that see marker 0.
+    assert np.isnan(got[0:3, 1000:1600]).all()
+    assert np.isfinite(got[0:3, 800:1000]).all() and np.isfinite(got[0:3, 1600:2200]).all()
+    assert np.isfinite(got[3:]).all()
+    np.testing.assert_array_equal(got[observed], matrix[observed])
+    trust = _window_trust(observed[:, 800:1800], False, False)
+    assert (trust[0:3] == 0).all()
+    assert (trust[3:6, 900:950] == 1).all()           # marker 1's gap lies inside
+    first = _window_trust(observed[:, 0:1000], True, False)
+    assert (first[0:3, 800:] == EDGE_GAP_WEIGHT).all() and (first[0:3, :800] == 1).all()
+
+
+def test_a_gap_no_window_can_fill_is_left_whole_and_reported(monkeypatch):
+    from functools import partial
+
+    from mocapfill import pipeline
+
+    truth = smooth_clip(3000, 6)
+    gapped = with_gap(with_gap(truth, 0, 800, 2200), 1, 1700, 1750)
+    monkeypatch.setattr(pipeline, "complete_matrix", partial(
+        pipeline.complete_matrix, window_frames=1000, window_overlap=200))
+    result = repair(gapped, RepairOptions(method="spline"))
+    status = {o.gap.marker: o.status for o in result.gaps}
+    assert status == {0: pipeline.LEFT_NO_WINDOW, 1: pipeline.FILLED}
+    assert not result.motion.observed[800:2200, 0].any()
+    assert np.isnan(result.motion.positions[800:2200, 0]).all()
+    assert result.motion.observed[1700:1750, 1].all()
 
 
 def test_long_clips_report_each_window_within_reporting_windows():
