@@ -172,11 +172,12 @@ def for_output(motion: Motion, path: str | os.PathLike) -> tuple[Motion, tuple[s
     model outputs, a TRC its header). A new TRC or CSV leaves out the points that are not
     marker trajectories (``fillable`` False: C3D model outputs): Vicon and OpenSim users
     read a TRC as markers only, and a later repair would fill those angles and moments and
-    take them as evidence for the markers. A new TRC, CSV or C3D file gets lengths in mm
-    when the clip's unit has a known length but is not a plain unit name (``in/0.45``, the
-    CMU AMC unit: a TRC ``Units`` or C3D ``POINT:UNITS`` no other tool reads); a unit with
-    no known length (a BVH's ``unknown``) is kept, with a note saying so. A TRC or CSV of
-    a clip without a frame rate (0 Hz) is written at 120 Hz, with a note. NPZ keeps all.
+    take them as evidence for the markers (a new C3D keeps them, listed in POINT:SCALARS).
+    A new TRC, CSV or C3D file gets lengths in mm when the clip's unit has a known length
+    but is not a plain unit name (``in/0.45``, the CMU AMC unit: a TRC ``Units`` or C3D
+    ``POINT:UNITS`` no other tool reads); a unit with no known length (a BVH's
+    ``unknown``) is kept, with a note saying so. A TRC or CSV of a clip without a frame
+    rate (0 Hz) is written at 120 Hz, with a note. NPZ keeps all.
 
     Parameters
     ----------
