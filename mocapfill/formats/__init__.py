@@ -172,11 +172,15 @@ def for_output(motion: Motion, path: str | os.PathLike) -> tuple[Motion, tuple[s
     model outputs, a TRC its header). A new TRC or CSV leaves out the points that are not
     marker trajectories (``fillable`` False: C3D model outputs): Vicon and OpenSim users
     read a TRC as markers only, and a later repair would fill those angles and moments and
-    take them as evidence for the markers. A new TRC, CSV or C3D file gets lengths in mm
-    when the clip's unit has a known length but is not a plain unit name (``in/0.45``, the
-    CMU AMC unit: a TRC ``Units`` or C3D ``POINT:UNITS`` no other tool reads); a unit with
-    no known length (a BVH's ``unknown``) is kept, with a note saying so. A TRC or CSV of
-    a clip without a frame rate (0 Hz) is written at 120 Hz, with a note. NPZ keeps all.
+    take them as evidence for the markers (a new C3D keeps them, listed in POINT:SCALARS).
+    A new TRC, CSV or C3D file gets lengths in mm when the clip's unit has a known length
+    but is not a plain unit name (``in/0.45``, the CMU AMC unit: a TRC ``Units`` or C3D
+    ``POINT:UNITS`` no other tool reads); a unit with no known length (a BVH's
+    ``unknown``) is kept, with a note saying so. A TRC or CSV of a clip without a frame
+    rate (0 Hz) is written at 120 Hz, with a note. A new TRC writes marker names OpenSim
+    accepts (``genou1_ NewMarker`` as ``genou1__NewMarker``) and a new CSV names on one
+    line, none empty or repeated: the clip keeps its labels, and a note gives how many
+    were renamed, with two examples. NPZ keeps all.
 
     Parameters
     ----------
@@ -205,6 +209,15 @@ def for_output(motion: Motion, path: str | os.PathLike) -> tuple[Motion, tuple[s
                                 observed=motion.observed[:, keep],
                                 labels=tuple(motion.labels[j] for j in keep),
                                 fillable=motion.fillable[keep])
+    rename = getattr(module, "new_file_names", None)
+    if rename is not None:
+        # The writer renames; the clip keeps its labels (a note, not a change of data).
+        changed = [(old, new) for old, new in zip(motion.labels, rename(motion.labels))
+                   if old != new]
+        if changed:
+            shown = ", ".join(f"{old!r} -> {new!r}" for old, new in changed[:2])
+            notes.append(f"{len(changed)} marker name(s) written as {module.NEW_FILE_NAMES}: "
+                         f"{shown}{', ...' if len(changed) > 2 else ''}")
     units = motion.units.strip()
     factor = mm_per_unit(units)
     if factor is None:

@@ -40,7 +40,11 @@ four words of that sample: x, y, z in the file's own processor format and storag
 word 4 = 0 (residual 0 = "computed, not measured" per c3d.org). Header, parameters,
 analog samples, events and every other sample stay byte-identical. Any other Motion is
 written as a new Intel float C3D, its frame numbers in TRIAL:ACTUAL_START_FIELD and
-ACTUAL_END_FIELD too (the header's words hold 65535 for a frame number past it).
+ACTUAL_END_FIELD too (the header's words hold 65535 for a frame number past it), and
+its points that are not marker trajectories (``fillable`` False, model outputs) listed
+in POINT:SCALARS (SCALARS2 ... past 255 of them), so they read back as model outputs:
+a clip does not record whether a point was an angle, a force or a power, and SCALARS is
+the one list that claims no kind.
 """
 from __future__ import annotations
 
@@ -596,7 +600,8 @@ def _label_chunks(labels: list[str]) -> list[list[str]]:
 def _new_file(motion: Motion) -> bytes:
     """A new Intel float C3D: header, POINT/ANALOG/TRIAL parameters, float32 frames.
 
-    Missing samples are stored as (0, 0, 0) with residual -1; observed samples with
+    Points whose ``fillable`` is False are listed in POINT:SCALARS (see the module
+    docstring). Missing samples are stored as (0, 0, 0) with residual -1; observed samples with
     residual 0, since no residual is known (c3d.org reads that as "computed").
     """
     n_frames, n_markers = motion.observed.shape
@@ -622,6 +627,11 @@ def _new_file(motion: Motion) -> bytes:
         suffix = "" if i == 0 else str(i + 1)
         params += [_char_param(1, f"LABELS{suffix}", chunk),
                    _char_param(1, f"DESCRIPTIONS{suffix}", [""] * len(chunk))]
+    # Model outputs (fillable False) in POINT:SCALARS: see the module docstring.
+    outputs = [label for label, ok in zip(labels, motion.fillable) if not ok]
+    if outputs:
+        for i, chunk in enumerate(_label_chunks(outputs)):
+            params.append(_char_param(1, "SCALARS" + ("" if i == 0 else str(i + 1)), chunk))
     if n_frames > 0xFFFF:
         params.append(_number_param(1, "LONG_FRAMES", [n_frames], True))
     params += [_group_entry(2, "ANALOG"),

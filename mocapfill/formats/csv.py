@@ -200,9 +200,7 @@ def patches(motion: Motion) -> bool:
 
 def new_file_lines(motion: Motion, decimals: int | None = None) -> list[str]:
     """The lines of a new plain CSV holding ``motion`` (see the module docstring)."""
-    # Unique (a repeated name would make its columns unreadable), like the TRC and C3D
-    # writers' names.
-    names = unique_labels([_clean_label(label, j) for j, label in enumerate(motion.labels)])
+    names = new_file_names(motion.labels)
     header = ["Frame", "Time"] + [quote(f"{name}_{axis}", ",")
                                   for name in names for axis in "XYZ"]
     rate = writable_rate(motion.rate, DEFAULT_RATE)
@@ -450,6 +448,17 @@ def _data_rows(lines: Sequence[str], start: int, section_delimiter: str | None =
             continue
         rows.append(i)
     return np.array(rows, dtype=int)
+
+
+# What ``formats.for_output`` says of the names a new file gets, in its note on them.
+NEW_FILE_NAMES = "names a CSV header holds"
+
+
+def new_file_names(labels: Sequence[str]) -> list[str]:
+    """The marker names of a new CSV: on one line, ``M001`` ... for an empty label, and
+    unique (a repeated name would make its columns unreadable), like the TRC and C3D
+    writers' names."""
+    return unique_labels([_clean_label(label, j) for j, label in enumerate(labels)])
 
 
 def _clean_label(label: str, index: int) -> str:

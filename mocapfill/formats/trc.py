@@ -63,8 +63,8 @@ refused.
 Marker names in a new file have the characters OpenSim rejects in component names
 (whitespace, ``\\``, ``/``, ``*``, ``+``) replaced by ``_``: a TRC is written for OpenSim,
 and a name it rejects makes the whole file unusable there, whereas the renamed marker
-is still recognisable; names that two labels become alike get ``_2``, ``_3`` ... A
-patched file keeps its names as they are.
+is still recognisable; names that two labels become alike get ``_2``, ``_3`` ...
+(``formats.write`` notes the renaming). A patched file keeps its names as they are.
 """
 from __future__ import annotations
 
@@ -268,6 +268,11 @@ def opensim_names(labels: Sequence[str]) -> list[str]:
     labels unique (``R ASI`` and ``R_ASI`` become ``R_ASI``, ``R_ASI_2``): a TRC naming a
     marker twice is not read."""
     return unique_labels([opensim_name(label, j) for j, label in enumerate(labels)])
+
+
+# What ``formats.for_output`` says of the names a new file gets, in its note on them.
+NEW_FILE_NAMES = "names OpenSim accepts"
+new_file_names = opensim_names
 
 
 # ----------------------------------------------------------------------------- helpers

@@ -604,6 +604,38 @@ def test_vicon_model_outputs_are_left_out_of_a_trc(tmp_path):
     assert formats.read(out).labels == tuple(trc.opensim_names(markers))
 
 
+def test_a_new_c3d_keeps_which_points_are_not_markers(tmp_path):
+    # A clip from an NPZ (or any other format) is written as a new file; its model
+    # outputs must read back as model outputs, or a later repair fills them and takes
+    # them as evidence for the markers.
+    clip = Motion(walk(n_points=3), np.ones((40, 3), bool), ("A", "LKneeAngles", "B"), 100.0,
+                  fillable=np.array([True, False, True]))
+    out = tmp_path / "new.c3d"
+    assert formats.write(clip, out) == ()
+    back = c3d.read(out)
+    assert back.labels == clip.labels and back.fillable.tolist() == [True, False, True]
+    assert formats.write(clip.replace(fillable=np.ones(3, bool)), tmp_path / "all.c3d") == ()
+    assert c3d.read(tmp_path / "all.c3d").fillable.all()
+
+
+def test_a_new_c3d_lists_more_than_255_model_outputs(tmp_path):
+    fillable = np.arange(600) % 7 == 0          # 514 outputs: SCALARS, SCALARS2, SCALARS3
+    clip = Motion(np.zeros((3, 600, 3)), np.ones((3, 600), bool),
+                  tuple(f"P{j}" for j in range(600)), 100.0, fillable=fillable)
+    formats.write(clip, tmp_path / "big.c3d")
+    np.testing.assert_array_equal(c3d.read(tmp_path / "big.c3d").fillable, fillable)
+
+
+def test_vicon_model_outputs_survive_c3d_npz_c3d(tmp_path):
+    motion = c3d.read(shared_file("c3d/btk-PiG__PiG_Motion-FlatFoot-Full.c3d"))
+    formats.write(motion, tmp_path / "pig.npz")
+    formats.write(formats.read(tmp_path / "pig.npz"), tmp_path / "back.c3d")
+    back = c3d.read(tmp_path / "back.c3d")
+    assert back.labels == motion.labels
+    np.testing.assert_array_equal(back.fillable, motion.fillable)
+    assert 0 < back.fillable.sum() < back.n_markers
+
+
 def test_duplicate_real_labels_get_numbered_suffixes():
     motion = c3d.read(shared_file("c3d/ktk-duplicate_labels.c3d"))
     assert len(set(motion.labels)) == motion.n_markers

@@ -342,6 +342,33 @@ def test_every_shared_trc_converts_to_an_opensim_file_and_back(path: Path, tmp_p
     assert back.rate == motion.rate
 
 
+def test_a_new_trc_notes_the_names_it_changes(tmp_path):
+    # OpenSim rejects whitespace, '/', '*', '+', '\\' in names: the writer replaces them,
+    # and the user hears of it (the clip keeps its labels).
+    from tests.helpers import smooth_clip
+
+    clip = smooth_clip(30, 4).replace(labels=("genou1_ NewMarker", "A/B", "R*K", "C"))
+    notes = formats.write(clip, tmp_path / "a.trc")
+    assert notes == ("3 marker name(s) written as names OpenSim accepts: 'genou1_ NewMarker' "
+                     "-> 'genou1__NewMarker', 'A/B' -> 'A_B', ...",)
+    assert formats.read(tmp_path / "a.trc").labels == ("genou1__NewMarker", "A_B", "R_K", "C")
+    assert clip.labels[0] == "genou1_ NewMarker"
+    one = clip.replace(labels=("A", "B", "C D", "E"))
+    assert formats.write(one, tmp_path / "b.trc") == (
+        "1 marker name(s) written as names OpenSim accepts: 'C D' -> 'C_D'",)
+    assert formats.write(one, tmp_path / "b.csv") == ()      # a CSV holds 'C D' as it is
+    assert formats.write(clip.replace(labels=("A", "B", "C", "D")), tmp_path / "c.trc") == ()
+
+
+def test_a_new_csv_notes_the_names_it_changes(tmp_path):
+    from tests.helpers import smooth_clip
+
+    clip = smooth_clip(30, 2).replace(labels=("two\nlines", "B"))
+    assert formats.write(clip, tmp_path / "a.csv") == (
+        "1 marker name(s) written as names a CSV header holds: 'two\\nlines' -> 'two lines'",)
+    assert formats.read(tmp_path / "a.csv").labels == ("two lines", "B")
+
+
 @pytest.mark.parametrize("suffix", [".trc", ".csv"])
 def test_a_clip_without_a_rate_is_written_at_120_hz_with_a_note(tmp_path, suffix):
     # A C3D without POINT:RATE reads as 0 Hz; a TRC's DataRate and a CSV's Time column
