@@ -348,14 +348,14 @@ def _window_trust(observed: np.ndarray, at_start: bool, at_end: bool) -> np.ndar
     seen = observed.any(axis=1)
     trust[~seen] = 0.0
     rows = np.flatnonzero(seen)
+    # Row by row, in place: no window-sized temporaries (a 300-marker window is 86 MB).
     if not at_start:
-        first = observed[rows].argmax(axis=1)           # frames before it: a run at the edge
-        edge = np.arange(observed.shape[1])[None, :] < first[:, None]
-        trust[rows] = np.where(edge, EDGE_GAP_WEIGHT, trust[rows])
+        for row, first in zip(rows.tolist(), observed[rows].argmax(axis=1).tolist()):
+            trust[row, :first] = EDGE_GAP_WEIGHT
     if not at_end:
-        last = observed.shape[1] - 1 - observed[rows, ::-1].argmax(axis=1)
-        edge = np.arange(observed.shape[1])[None, :] > last[:, None]
-        trust[rows] = np.where(edge, EDGE_GAP_WEIGHT, trust[rows])
+        for row, last in zip(rows.tolist(), observed[rows, ::-1].argmax(axis=1).tolist()):
+            if last:
+                trust[row, -last:] = EDGE_GAP_WEIGHT
     return trust
 
 
@@ -400,7 +400,8 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
             w[:window_overlap] = ramp
         if stop < n:
             w[-window_overlap:] = ramp[::-1]
-        weight = w * _window_trust(observed[:, start:stop], start == 0, stop == n)
+        weight = _window_trust(observed[:, start:stop], start == 0, stop == n)
+        weight *= w
         total = weight * fill
         del fill
         carried = pending.shape[1]
