@@ -704,12 +704,23 @@ def bench_speed(runs: int, quick: bool, no_compare: bool, json_path: Path | None
     the computed floor, peak memory (MB), and trnn-paper / tsmc side by side."""
     from .bench_speed import format_speed_table, rows_as_dicts, run_speed
 
+    _check_written(json_path)
     rows = run_speed(runs=runs, quick=quick, compare=not no_compare)
     click.echo(format_speed_table(rows))
     if json_path is not None:
         from .formats import write_text_atomically
 
         write_text_atomically(json_path, json.dumps(rows_as_dicts(rows), indent=1))
+
+
+def _check_written(*paths: Path | None) -> None:
+    """Before a long run: each file it will write can be created (its folder exists, it is
+    not a folder), not the temporary file's OSError once the run is over."""
+    from .formats import check_output_folder
+
+    for path in paths:
+        if path is not None:
+            check_output_folder(path)
 
 
 @bench.command("accuracy")
@@ -728,6 +739,7 @@ def bench_accuracy(quick: bool, methods: str | None, json_path: Path | None,
     table of RMSE in mm and time in s."""
     from .bench import format_table, run_accuracy
 
+    _check_written(json_path)
     chosen = (["trnn", "trnn-lowrank", "trnn-paper", "pca", "gaussian", "spline", "pchip",
                "linear", "tsmc", "ialm", "psvt"] if methods is None
               else [m.strip() for m in methods.split(",") if m.strip()])
@@ -756,6 +768,7 @@ def bench_paper(plots_dir: Path | None, quick: bool, markdown_path: Path | None)
     mm). Prints a markdown report."""
     from .bench_paper import format_markdown, run_paper
 
+    _check_written(markdown_path)
     if plots_dir is not None:
         plots_dir.mkdir(parents=True, exist_ok=True)
     report = format_markdown(run_paper(quick, plots_dir))

@@ -1,5 +1,6 @@
 """The command line: exit codes, one-line errors, atomic outputs, JSON shapes."""
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -676,3 +677,46 @@ def test_convert_to_trc_leaves_points_that_are_not_markers_out_and_says_so(clip_
     written = formats.read(clip_files / "out.trc")
     assert written.labels == tuple(label for j, label in enumerate(clip.labels)
                                    if j not in (2, 5))
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes are POSIX")
+@pytest.mark.parametrize("through_link", [False, True])
+def test_an_output_that_is_a_named_pipe_is_written_through_not_replaced(tmp_path,
+                                                                         through_link):
+    # Renaming the temporary file over a device or pipe replaced the node itself
+    # (`bench accuracy --json /dev/full` left a JSON file in place of the device).
+    import stat
+    import threading
+
+    from mocapfill.formats import write_text_atomically
+
+    fifo = tmp_path / "pipe.json"
+    os.mkfifo(fifo)
+    target = fifo
+    if through_link:
+        target = tmp_path / "link.json"
+        target.symlink_to(fifo)
+    got = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_text()), daemon=True)
+    reader.start()
+    write_text_atomically(target, '{"rows": []}')
+    reader.join(timeout=10)
+    assert got == ['{"rows": []}']
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert target.is_symlink() == through_link
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted({fifo.name, target.name})
+
+
+def test_bench_output_files_are_checked_before_the_run(tmp_path, monkeypatch):
+    import mocapfill.bench
+    import mocapfill.bench_paper
+
+    ran = []
+    monkeypatch.setattr(mocapfill.bench, "run_accuracy", lambda *a, **k: ran.append(1) or [])
+    monkeypatch.setattr(mocapfill.bench_paper, "run_paper", lambda *a, **k: ran.append(1))
+    for args in (["accuracy", "--quick", "--methods", "linear", "--json"], ["paper", "--output"]):
+        result = CliRunner().invoke(main, ["bench", *args, str(tmp_path / "nodir" / "x.out")])
+        assert result.exit_code == 2
+        assert "output folder" in result.output and "does not exist" in result.output
+        assert ".tmp" not in result.output
+    assert ran == []

@@ -24,6 +24,7 @@ from __future__ import annotations
 import importlib
 import os
 import shutil
+import stat
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -298,7 +299,16 @@ def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = Non
 
     The result gets the mode a plain ``open()`` would give (mkstemp creates 0600), or that
     of ``mode_from``.
+
+    A ``path`` that is (or links to) a device, a named pipe or a socket is written through,
+    as ``open()`` would: renaming a file over it replaced the node itself (``--json
+    /dev/full`` left a JSON file in place of the device, ``--json /dev/stdout`` printed
+    nothing). Atomicity means nothing there; a write that fails (``/dev/full``: no space
+    left) raises as it happens.
     """
+    if _special_file(path):
+        yield str(path)
+        return
     directory = path.parent if str(path.parent) else Path(".")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=directory)
     os.close(fd)
@@ -312,6 +322,16 @@ def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = Non
     except BaseException:
         _discard(tmp)
         raise
+
+
+def _special_file(path: Path) -> bool:
+    """Whether ``path`` exists and is, after symbolic links, neither a regular file nor a
+    folder: a device, a named pipe or a socket."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:         # absent (or a dangling link): a new file is made
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
 
 
 def write_text_atomically(path: str | os.PathLike, text: str) -> None:
