@@ -97,8 +97,8 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
     Parameters
     ----------
     mr
-        "Random missing": in every frame a fraction ``mr`` of the markers (rounded) is
-        removed, chosen at random among the candidate markers.
+        "Random missing": in every frame a fraction ``mr`` of the markers (rounded, and
+        never all of them) is removed, chosen at random among the candidate markers.
     ml
         "Continuous missing": ``markers`` random markers each lose ``ml`` consecutive
         frames. The run starts at a random interior frame so it never touches the clip's
@@ -124,7 +124,9 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
     if mr is not None:
         if not 0 <= mr < 1:
             raise ParameterError(f"mr must be in [0, 1), got {mr}")
-        k = int(round(mr * candidates.size))
+        # Never every marker of a frame: mr < 1, and with all of them gone (mr ≥ 1 − 0.5/n
+        # rounds up to n) the clip kept only the first sample of each marker.
+        k = min(int(round(mr * candidates.size)), candidates.size - 1)
         if k:
             # argsort of uniform noise: an independent random k-subset in every frame.
             order = np.argsort(rng.random((n_frames, candidates.size)), axis=1)[:, :k]

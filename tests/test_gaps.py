@@ -33,6 +33,13 @@ def test_random_missing_removes_fraction_of_markers_in_every_frame():
     assert (removed == 4).sum() >= 199  # one frame may keep a marker's last sample
 
 
+def test_random_missing_close_to_one_keeps_a_marker_in_every_frame():
+    # mr = 0.99 of 10 markers rounds to all 10: every frame lost every marker, and the
+    # rule that keeps a marker's last sample put back frame 0 alone.
+    gapped = simulate_gaps(smooth_clip(200, 10), mr=0.99, seed=1)
+    assert ((~gapped.observed).sum(axis=1) == 9).all()
+
+
 def test_continuous_missing_removes_interior_runs_of_ml_frames():
     motion = smooth_clip(300, 15)
     gapped = simulate_gaps(motion, ml=40, markers=10, seed=7)
