@@ -732,10 +732,11 @@ def bench_accuracy(quick: bool, methods: str | None, json_path: Path | None,
                "linear", "tsmc", "ialm", "psvt"] if methods is None
               else [m.strip() for m in methods.split(",") if m.strip()])
     unknown = sorted(set(chosen) - set(METHOD_NAMES))
-    if unknown:
+    if unknown or not chosen:   # '' or ' , ' chose nothing: refuse it, not an empty table
         from .errors import ParameterError
 
-        raise ParameterError(f"unknown method(s) {', '.join(unknown)}")
+        raise ParameterError(f"unknown method(s) {', '.join(unknown)}" if unknown
+                             else f"--methods {methods!r} names no method")
     if plots_dir is not None:
         plots_dir.mkdir(parents=True, exist_ok=True)
     rows = run_accuracy(quick, chosen, json_path=json_path, plots_dir=plots_dir)

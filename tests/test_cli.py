@@ -145,6 +145,12 @@ def test_check_exits_1_when_gaps_are_left(clip_files):
     # A gap length in seconds means nothing without a rate (it used to mean 0 frames).
     (["repair", "norate.npz", "o.npz", "--max-gap", "0.5s"], 2,
      "norate.npz: the file states no frame rate, so --max-gap 0.5s"),
+    # An empty method list used to print an empty table and exit 0; refused before any run.
+    (["bench", "accuracy", "--quick", "--methods", ""], 2, "--methods '' names no method"),
+    (["bench", "accuracy", "--quick", "--methods", " , "], 2,
+     "--methods ' , ' names no method"),
+    (["bench", "accuracy", "--quick", "--methods", "linear,bogus"], 2,
+     "unknown method(s) bogus"),
 ])
 def test_bad_input_gives_one_line_error_and_exit_code(clip_files, monkeypatch, args, code, words):
     monkeypatch.chdir(clip_files)
