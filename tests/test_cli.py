@@ -35,6 +35,21 @@ def test_repair_writes_a_complete_file_and_a_summary(clip_files):
     assert formats.read(clip_files / "out.npz").observed.all()
 
 
+@pytest.mark.parametrize(("asked", "noted"), [(500, True), (10, False), (4, False)])
+def test_simulate_notes_when_ml_cannot_hit_as_many_markers_as_asked(clip_files, asked,
+                                                                    noted):
+    # The 10-marker clip: --markers 500 used to hit all 10 without a word.
+    result = run("simulate", clip_files / "truth.npz", clip_files / "s.npz", "--ml", "20",
+                 "--markers", asked, "--seed", "1")
+    assert result.exit_code == 0, result.output
+    note = (f"mocapfill: note: {clip_files / 'truth.npz'}: --markers {asked} but the clip has "
+            "10 markers with data; --ml hit all 10")
+    assert (note in result.stderr) == noted
+    assert ("note:" in result.stderr) == noted
+    hit = (~formats.read(clip_files / "s.npz").observed).any(axis=0).sum()
+    assert hit == min(asked, 10)
+
+
 def test_simulate_repair_score_chain_beats_linear_interpolation(clip_files):
     d = clip_files
     assert run("simulate", d / "truth.npz", d / "sim.npz", "--ml", "40", "--seed", "1",
