@@ -487,15 +487,28 @@ def _solver_options(**values) -> dict:
 def simulate(in_path: Path, out_path: Path, mr, ml, n_markers, seed, zero_is_missing) -> None:
     """Add gaps to IN with the paper's protocols (on top of its own gaps), write OUT."""
     from . import formats
-    from .gaps import simulate_channel_gaps, simulate_gaps
+    from .gaps import (
+        channel_simulation_candidates,
+        simulate_channel_gaps,
+        simulate_gaps,
+        simulation_candidates,
+    )
 
     formats.check_output(out_path, in_path)
     motion = _read(in_path, zero_is_missing)
     # A skeleton clip written back to its own format loses joint channels (nan cells);
     # otherwise the protocols remove marker (or joint position) samples.
-    simulate = simulate_channel_gaps if formats.same_skeleton_format(in_path, out_path) \
-        else simulate_gaps
+    channels = formats.same_skeleton_format(in_path, out_path)
+    simulate = simulate_channel_gaps if channels else simulate_gaps
     gapped = simulate(motion, mr=mr, ml=ml, markers=n_markers, seed=seed)
+    if ml is not None:
+        # --ml hits at most every candidate; say so rather than run fewer than asked quietly.
+        hittable = (channel_simulation_candidates if channels
+                    else simulation_candidates)(motion).size
+        if n_markers > hittable:
+            kind = "joints with channels" if channels else "markers with data"
+            click.echo(f"mocapfill: note: {in_path}: --markers {n_markers} but the clip has "
+                       f"{hittable} {kind}; --ml hit all {hittable}", err=True)
     _write_noting(gapped, out_path)
     removed = int((motion.observed & ~gapped.observed).sum())
     click.echo(f"{in_path} -> {out_path}: {removed} samples removed", err=True)
@@ -744,10 +757,11 @@ def bench_accuracy(quick: bool, methods: str | None, json_path: Path | None,
                "linear", "tsmc", "ialm", "psvt"] if methods is None
               else [m.strip() for m in methods.split(",") if m.strip()])
     unknown = sorted(set(chosen) - set(METHOD_NAMES))
-    if unknown:
+    if unknown or not chosen:   # '' or ' , ' chose nothing: refuse it, not an empty table
         from .errors import ParameterError
 
-        raise ParameterError(f"unknown method(s) {', '.join(unknown)}")
+        raise ParameterError(f"unknown method(s) {', '.join(unknown)}" if unknown
+                             else f"--methods {methods!r} names no method")
     if plots_dir is not None:
         plots_dir.mkdir(parents=True, exist_ok=True)
     rows = run_accuracy(quick, chosen, json_path=json_path, plots_dir=plots_dir)

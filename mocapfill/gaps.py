@@ -117,7 +117,7 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
         raise ParameterError(f"seed must be ≥ 0, got {seed}")
     rng = np.random.default_rng(seed)
     observed = motion.observed.copy()
-    candidates = np.flatnonzero(motion.fillable & observed.any(axis=0))
+    candidates = simulation_candidates(motion)
     if candidates.size == 0:
         raise NothingToRepair(f"{named(motion.path)}no marker with observed samples to remove")
     n_frames = motion.n_frames
@@ -152,14 +152,43 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
     return motion.with_positions(motion.positions, observed)
 
 
-def simulate_channel_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = None,
-                          markers: int = 10, seed: int | None = None) -> Motion:
-    """The paper's protocols on a skeleton clip (BVH, AMC), removing joint channels.
+def simulation_candidates(motion: Motion) -> np.ndarray:
+    """The markers :func:`simulate_gaps` may remove samples of.
 
-    The "markers" of the protocols are the joints that own channels: a removed joint sample
-    loses all its channels in that frame (written back as ``nan`` cells). The positions of
-    the clip follow by forward kinematics.
+    Parameters
+    ----------
+    motion
+        The clip.
+
+    Returns
+    -------
+    np.ndarray
+        Indices of the fillable markers with at least one observed sample; ``ml`` hits at
+        most this many markers, whatever ``markers`` asks for.
     """
+    return np.flatnonzero(motion.fillable & motion.observed.any(axis=0))
+
+
+def channel_simulation_candidates(motion: Motion) -> np.ndarray:
+    """The joints (indices into ``motion.labels``) :func:`simulate_channel_gaps` may hit.
+
+    Parameters
+    ----------
+    motion
+        A clip read from a BVH or AMC file.
+
+    Returns
+    -------
+    np.ndarray
+        Indices of the joints that own channels and have a frame with all of them observed.
+    """
+    joints, _, _, _, proxy = _joint_proxy(motion)
+    return np.asarray(joints)[simulation_candidates(proxy)]
+
+
+def _joint_proxy(motion: Motion):
+    """A skeleton clip's joints that own channels as a Motion of "markers" (their channels
+    all observed), with the channel values, mask and columns it was built from."""
     from . import formats
 
     module = formats.format_module(motion.path) if motion.path is not None else None
@@ -173,6 +202,21 @@ def simulate_channel_gaps(motion: Motion, *, mr: float | None = None, ml: int | 
     joint_observed = np.stack([observed[:, columns[j]].all(axis=1) for j in joints], axis=1)
     proxy = Motion(np.zeros(joint_observed.shape + (3,)), joint_observed,
                    tuple(motion.labels[j] for j in joints), motion.rate)
+    return joints, values, observed, columns, proxy
+
+
+def simulate_channel_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = None,
+                          markers: int = 10, seed: int | None = None) -> Motion:
+    """The paper's protocols on a skeleton clip (BVH, AMC), removing joint channels.
+
+    The "markers" of the protocols are the joints that own channels: a removed joint sample
+    loses all its channels in that frame (written back as ``nan`` cells). The positions of
+    the clip follow by forward kinematics.
+    """
+    from . import formats
+
+    joints, values, observed, columns, proxy = _joint_proxy(motion)
+    module = formats.format_module(motion.path)
     removed = proxy.observed & ~simulate_gaps(proxy, mr=mr, ml=ml, markers=markers,
                                               seed=seed).observed
     new_observed = observed.copy()

@@ -422,13 +422,16 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
 
 
 def _complete_clip(motion: Motion, matrix: np.ndarray, observed: np.ndarray,
-                   options: RepairOptions) -> np.ndarray:
-    """:func:`complete_matrix` with the options; a solver failure names the clip's file."""
+                   options: RepairOptions, rows: str = "3 × markers with data") -> np.ndarray:
+    """:func:`complete_matrix` with the options; a solver failure names the clip's file.
+
+    ``rows`` says what the matrix's rows are, for the message refusing a --rank above them.
+    """
     rank = options.solver_options.get("rank")
     limit = min(matrix.shape[0], matrix.shape[1], WINDOW_FRAMES)   # rows, frames per solve
     if rank is not None and rank > limit:
         raise ParameterError(f"{named(motion.path)}--rank {rank} is larger than this clip allows "
-                             f"({limit}: the smaller of 3 × markers with data and frames)")
+                             f"({limit}: the smaller of {rows} and frames)")
     try:
         return complete_matrix(matrix, observed, options.method, rate=motion.rate,
                                overwrite=True, **options.solver_options)
@@ -726,7 +729,10 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
         pad = (-rows) % 3  # methods read rows in x/y/z triples; constant rows carry nothing
         matrix = np.vstack([values.T, np.zeros((pad, values.shape[0]))])
         mask = np.vstack([observed.T, np.ones((pad, values.shape[0]), bool)])
-        solved = _complete_clip(motion, matrix, mask, options)[:rows].T
+        # A channel-space matrix's rows are channels, not 3 × markers: say so if --rank
+        # is refused (the padding rows count towards the limit, so name them too).
+        described = f"the {rows} channels" + (f" (padded to {rows + pad})" if pad else "")
+        solved = _complete_clip(motion, matrix, mask, options, described)[:rows].T
         for column in np.flatnonzero(fill.any(axis=0)):
             for start, stop in missing_runs(observed[:, column]):
                 if fill[start, column] and (start == 0 or stop == values.shape[0]):

@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from mocapfill import formats
+from mocapfill.errors import ParameterError
 from mocapfill.formats.bvh import channels as bvh_channels
 from mocapfill.gaps import find_gaps, simulate_channel_gaps
 from mocapfill.pipeline import RepairOptions, repair
@@ -79,3 +80,17 @@ def test_channel_repair_applies_the_jump_check_to_the_points_it_moves(tmp_path, 
     np.testing.assert_array_equal(strict.motion.observed, gapped.observed)
     values, observed = bvh_channels(strict.motion)
     assert np.isnan(values[15:25, column]).all() and not observed[15:25, column].any()
+
+
+def test_a_rank_above_the_channels_is_refused_in_terms_of_channels(tmp_path):
+    # The channel-space matrix has a row per channel (9 here: root 6 + arm 3), not
+    # 3 × markers; the refusal must name what actually bounds the rank.
+    gapped = _chain_with_a_gap(tmp_path, 6)
+    options = RepairOptions(space="channels", method="trnn-lowrank",
+                            solver_options={"rank": 10})
+    with pytest.raises(ParameterError) as refused:
+        repair(gapped, options)
+    message = str(refused.value)
+    assert "--rank 10 is larger than this clip allows (9: the smaller of the 9 channels " \
+           "and frames)" in message
+    assert "markers" not in message

@@ -36,6 +36,21 @@ def test_repair_writes_a_complete_file_and_a_summary(clip_files):
     assert formats.read(clip_files / "out.npz").observed.all()
 
 
+@pytest.mark.parametrize(("asked", "noted"), [(500, True), (10, False), (4, False)])
+def test_simulate_notes_when_ml_cannot_hit_as_many_markers_as_asked(clip_files, asked,
+                                                                    noted):
+    # The 10-marker clip: --markers 500 used to hit all 10 without a word.
+    result = run("simulate", clip_files / "truth.npz", clip_files / "s.npz", "--ml", "20",
+                 "--markers", asked, "--seed", "1")
+    assert result.exit_code == 0, result.output
+    note = (f"mocapfill: note: {clip_files / 'truth.npz'}: --markers {asked} but the clip has "
+            "10 markers with data; --ml hit all 10")
+    assert (note in result.stderr) == noted
+    assert ("note:" in result.stderr) == noted
+    hit = (~formats.read(clip_files / "s.npz").observed).any(axis=0).sum()
+    assert hit == min(asked, 10)
+
+
 def test_simulate_repair_score_chain_beats_linear_interpolation(clip_files):
     d = clip_files
     assert run("simulate", d / "truth.npz", d / "sim.npz", "--ml", "40", "--seed", "1",
@@ -146,6 +161,12 @@ def test_check_exits_1_when_gaps_are_left(clip_files):
     # A gap length in seconds means nothing without a rate (it used to mean 0 frames).
     (["repair", "norate.npz", "o.npz", "--max-gap", "0.5s"], 2,
      "norate.npz: the file states no frame rate, so --max-gap 0.5s"),
+    # An empty method list used to print an empty table and exit 0; refused before any run.
+    (["bench", "accuracy", "--quick", "--methods", ""], 2, "--methods '' names no method"),
+    (["bench", "accuracy", "--quick", "--methods", " , "], 2,
+     "--methods ' , ' names no method"),
+    (["bench", "accuracy", "--quick", "--methods", "linear,bogus"], 2,
+     "unknown method(s) bogus"),
 ])
 def test_bad_input_gives_one_line_error_and_exit_code(clip_files, monkeypatch, args, code, words):
     monkeypatch.chdir(clip_files)

@@ -109,6 +109,11 @@ class C3DSource:
         (markers,) bool, False for model outputs; those points are never patched.
     zeros_are_gaps
         Whether exact (0, 0, 0) samples were read as missing (``zero_is_missing``).
+    data
+        The bytes read, kept only when ``path`` is not a regular file (a FIFO, a device):
+        such a file cannot be read a second time, so the writer patches these instead.
+        None for a regular file, which the writer re-reads rather than holding a large
+        file's bytes for the life of the clip.
     """
 
     path: Path
@@ -124,6 +129,7 @@ class C3DSource:
     observed: np.ndarray
     fillable: np.ndarray
     zeros_are_gaps: bool = False
+    data: bytes | None = None
 
     @property
     def word_size(self) -> int:
@@ -458,7 +464,8 @@ def read(path: Path, *, zero_is_missing: str = "auto") -> Motion:
                        scale=layout.scale, data_start=layout.data_start,
                        frame_stride=layout.frame_stride, n_points=n_points,
                        point_index=point_index, observed=observed,
-                       fillable=np.array(fillable), zeros_are_gaps=zero_is_missing == "on")
+                       fillable=np.array(fillable), zeros_are_gaps=zero_is_missing == "on",
+                       data=None if path.is_file() else data)
     return Motion(positions, observed.copy(), tuple(labels), layout.rate, _units(point),
                   fillable=fillable, source=source, path=path, first_frame=layout.first_frame)
 
@@ -502,12 +509,19 @@ def patches(motion: Motion) -> bool:
 
 def _patched(motion: Motion, source: C3DSource, out: Path) -> bytes:
     """The source file's bytes with the newly observed samples written in."""
+    if source.data is not None:     # a FIFO or the like: a second read would block or differ
+        return _patch(motion, source, out, source.data)
     try:
         original = source.path.read_bytes()
     except OSError as exc:
         raise FormatError(source.path, f"cannot re-read the original to patch it ({exc})") from None
     if len(original) != source.size or zlib.crc32(original) != source.crc32:
         raise FormatError(source.path, "changed since it was read; read it again before writing")
+    return _patch(motion, source, out, original)
+
+
+def _patch(motion: Motion, source: C3DSource, out: Path, original: bytes) -> bytes:
+    """``original`` (the source file's bytes, as read) with the changed samples written in."""
     if motion.observed.shape != source.observed.shape:
         raise FormatError(out, f"motion is {motion.observed.shape} (frames, markers) but its "
                                f"source C3D holds {source.observed.shape}; cannot patch")

@@ -1,7 +1,11 @@
 """C3D reader and patch writer: generated files in every storage, then the real files."""
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import tempfile
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -366,6 +370,28 @@ def test_changed_source_file_is_not_patched(tmp_path):
     path.write_bytes(path.read_bytes()[:-1] + b"\x01")
     with pytest.raises(FormatError, match="changed since it was read"):
         c3d.write(fill_by_interpolation(before), tmp_path / "out.c3d")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="FIFOs need a POSIX system")
+def test_repair_of_a_c3d_read_from_a_fifo_patches_the_bytes_read(tmp_path):
+    # A FIFO can be read once: re-reading it to patch blocked forever. The repair runs in
+    # a child process with a timeout so that a regression fails instead of hanging.
+    path, _, _ = gapped_file(tmp_path)
+    fifo = tmp_path / "piped.c3d"
+    os.mkfifo(fifo)
+    feeder = threading.Thread(target=fifo.write_bytes, args=(path.read_bytes(),), daemon=True)
+    feeder.start()
+    piped, regular = tmp_path / "from-fifo.c3d", tmp_path / "from-file.c3d"
+    done = subprocess.run([sys.executable, "-m", "mocapfill", "repair", str(fifo), str(piped)],
+                          capture_output=True, text=True, timeout=60)
+    feeder.join(timeout=5)
+    assert done.returncode == 0, done.stderr
+    done = subprocess.run([sys.executable, "-m", "mocapfill", "repair", str(path), str(regular)],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert piped.read_bytes() == regular.read_bytes()
+    assert piped.read_bytes() != path.read_bytes()      # the gaps were filled in the patch
+    assert c3d.read(piped).observed.sum() > c3d.read(path).observed.sum()
 
 
 def test_reshaped_motion_cannot_be_patched(tmp_path):
