@@ -680,20 +680,21 @@ def convert(in_path: Path, out_path: Path, zero_is_missing: str) -> None:
 
     formats.check_output(out_path, in_path)
     motion = _read(in_path, zero_is_missing)
-    written = _write_noting(motion, out_path)
+    _write_noting(motion, out_path)
+    # The markers OUT holds (a TRC leaves model outputs out): asked again here only, where
+    # the summary counts them, not by every repair and simulate that writes a new file.
+    written = formats.for_output(motion, out_path)[0]
     click.echo(f"{in_path} -> {out_path}: {written.n_markers} markers, {written.n_frames} "
                "frames", err=True)
 
 
-def _write_noting(motion, out_path: Path):
+def _write_noting(motion, out_path: Path) -> None:
     """Write OUT and show, as reader notes are shown, what its format could not hold as
-    the clip had it (model outputs left out of a TRC, lengths converted to mm); the clip
-    as written."""
+    the clip had it (model outputs left out of a TRC, lengths converted to mm)."""
     from . import formats
 
     for note in formats.write(motion, out_path):
         click.echo(f"mocapfill: note: {out_path}: {note}", err=True)
-    return formats.for_output(motion, out_path)[0]
 
 
 # ---------------------------------------------------------------- bench
