@@ -210,11 +210,6 @@ class ShortRunsFirst:
         return run
 
 
-def short_runs_first(fill: Candidate, *, min_gap: int = MIN_MODEL_GAP) -> Candidate:
-    """``fill`` wrapped alone by a :class:`ShortRunsFirst`."""
-    return ShortRunsFirst(min_gap)(fill)
-
-
 # --------------------------------------------------------------------------- candidates
 
 def odd_spline_fill(matrix: np.ndarray, observed: np.ndarray, *, degree: int = 5

@@ -508,12 +508,13 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
         candidates["gaussian"] = gaussian_fill
     # The rigid-body and PCA fills need rows that are x, y, z of markers (one mask per
     # marker); a channel matrix or a mask split within a marker gets the other fillers.
-    markers = row_groups(observed).shape[1] == 3
+    groups = row_groups(observed)
+    markers = groups.shape[1] == 3
     if markers:
         candidates["rigid"] = short_runs_first(rigid_fill)
     if tsmc_offered(observed):
         candidates["tsmc"] = tsmc_fill
-    if markers and held_short_runs(observed, row_groups(observed), MIN_MODEL_GAP,
+    if markers and held_short_runs(observed, groups, MIN_MODEL_GAP,
                                    ends=False).all(axis=0).sum() >= 60:
         # Gløersen & Federolf's PCA fill needs complete frames, counted with the short gaps
         # filled (flicker leaves none otherwise); where the clip has them it is cheap and

@@ -631,7 +631,7 @@ def test_short_gaps_filled_first_give_a_long_gap_its_rigid_donors():
     # while each of the others flickers (1–2 frames missing) inside that stretch, so no
     # marker is seen all through it and the rigid fill alone can only draw a line.
     from mocapfill.solvers._linalg import linear_fill
-    from mocapfill.solvers.gapwise import rigid_fill, short_runs_first
+    from mocapfill.solvers.gapwise import ShortRunsFirst, rigid_fill
     from mocapfill.solvers.interp import spline
 
     rng = np.random.default_rng(0)
@@ -650,7 +650,7 @@ def test_short_gaps_filled_first_give_a_long_gap_its_rigid_donors():
 
     alone = rigid_fill(matrix, observed)
     np.testing.assert_array_equal(alone[gap], linear_fill(matrix, observed)[gap])
-    first = short_runs_first(rigid_fill)(matrix, observed)
+    first = ShortRunsFirst()(rigid_fill)(matrix, observed)
     assert np.abs(first[gap] - matrix[gap]).max() < 0.01 * np.abs(alone[gap] - matrix[gap]).max()
     assert np.abs(first[gap] - matrix[gap]).max() < 0.05                  # mm, of ~100 mm moves
     # The short gaps keep the cubic spline's fill; observed samples are untouched.
@@ -659,13 +659,13 @@ def test_short_gaps_filled_first_give_a_long_gap_its_rigid_donors():
         np.testing.assert_array_equal(first[3 * j:3 * j + 3, a:b], cubic[3 * j:3 * j + 3, a:b])
     np.testing.assert_array_equal(first[observed], matrix[observed])
     # The validation run's request for some gaps alone (FILLS_GAPS_ALONE) passes through.
-    wrapped = short_runs_first(rigid_fill)
+    wrapped = ShortRunsFirst()(rigid_fill)
     assert wrapped.fills_gaps_alone
     some = wrapped(matrix, observed, only=frozenset([(0, 150, 190)]))
     np.testing.assert_array_equal(some[gap], first[gap])
     # Without short gaps the candidate runs as it is.
     plain = _mask(6, n, [(0, 150, 190)])
-    np.testing.assert_array_equal(short_runs_first(rigid_fill)(matrix, plain),
+    np.testing.assert_array_equal(ShortRunsFirst()(rigid_fill)(matrix, plain),
                                   rigid_fill(matrix, plain))
 
 
@@ -681,7 +681,7 @@ def test_held_short_runs_leave_end_runs_missing_when_asked():
     assert not inner[0, 20:27].any() and not every[0, 20:27].any()        # 7 frames: long
 
 
-def test_candidates_wrapped_by_one_short_runs_first_share_its_spline_fill(monkeypatch):
+def test_candidates_wrapped_by_one_short_runs_first_instance_share_its_spline_fill(monkeypatch):
     from mocapfill.solvers import interp
     from mocapfill.solvers.gapwise import ShortRunsFirst, regression_fill, rigid_fill
 
