@@ -251,13 +251,56 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
     return solved if borrowed is None else (solved, validation)
 
 
-def window_bounds(n_frames: int, window: int, overlap: int) -> list[tuple[int, int]]:
-    """[start, stop) of overlapping windows covering ``n_frames``; the last one is full."""
+def window_bounds(n_frames: int, window: int, overlap: int,
+                  observed: np.ndarray | None = None) -> list[tuple[int, int]]:
+    """[start, stop) of overlapping windows covering ``n_frames``; the last one is full.
+
+    Windows start ``window − overlap`` frames apart. With ``observed`` (rows × frames), a
+    window starts earlier where a gap runs out of the window before it, so that one window
+    holds that gap whole with GAP_CONTEXT frames before it where it can
+    (:func:`_start_holding`): a gap no window holds whole is extrapolated from each side.
+    """
     if n_frames <= window:
         return [(0, n_frames)]
     step = window - overlap
-    starts = list(range(0, n_frames - window, step)) + [n_frames - window]
+    starts = [0]
+    while True:
+        start = starts[-1]
+        following = start + step
+        if observed is not None:
+            following = min(following, _start_holding(observed, start, window))
+        if following >= n_frames - window:
+            break
+        starts.append(following)
+    starts.append(n_frames - window)
     return [(a, a + window) for a in starts]
+
+
+# Frames of observed samples that a window started early for a gap keeps before the gap.
+GAP_CONTEXT = 500
+
+
+def _start_holding(observed: np.ndarray, start: int, window: int) -> int:
+    """The latest start, at least half a window after ``start``, of a window that holds
+    whole (with an observed sample on either side) each gap that runs out of the window
+    [start, start + window), keeping up to GAP_CONTEXT frames before it; the clip's length
+    where no gap needs one (gaps longer than a window, or reaching an end of the clip or of
+    this window, are held by none)."""
+    n = observed.shape[1]
+    last = start + window - 1
+    earliest = start + window // 2
+    best = n
+    for row in np.flatnonzero(~observed[:, last]).tolist():
+        before = observed[row, start:last]
+        after = observed[row, last + 1:last + window]
+        if not before.any() or not after.any():
+            continue
+        gap_start = last - int(before[::-1].argmax())           # its first missing frame
+        gap_stop = last + 1 + int(after.argmax())               # its first observed frame after
+        lowest = max(earliest, gap_stop - window + 1)
+        if lowest <= gap_start - 1:
+            best = min(best, max(lowest, gap_start - 1 - GAP_CONTEXT))
+    return best
 
 
 # Called as progress(windows done, windows in all) after each window of a long clip (the
@@ -366,7 +409,9 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
 
     Clips longer than ``window_frames`` are solved in windows overlapping by
     ``window_overlap`` frames, blended with linear cross-fades, so memory stays bounded and
-    time linear in the clip length (0 disables windowing). Row by row, a window that never
+    time linear in the clip length (0 disables windowing); a window starts early where that
+    lets it hold whole a gap that runs out of the window before (:func:`window_bounds`).
+    Row by row, a window that never
     observes a row gives no fill for it, and a gap running into a window's inner edge gets
     little weight from that window (:func:`_window_trust`); a missing sample no window can
     fill (a marker missing through a whole window and the overlaps around it) stays NaN.
@@ -383,7 +428,7 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
     if not 0 < window_overlap < window_frames // 2:
         raise ParameterError("window overlap must be positive and under half the window")
     ramp = np.linspace(0.0, 1.0, window_overlap + 2)[1:-1]
-    bounds = window_bounds(n, window_frames, window_overlap)
+    bounds = window_bounds(n, window_frames, window_overlap, observed)
     # Each window's weighted fill plus what earlier windows left pending on its first
     # frames; the frames before the next window's start are then final and written out
     # (a window only reads frames no earlier window has written). The sums are those of

@@ -278,6 +278,31 @@ def test_window_bounds_cover_the_clip_with_overlap():
     assert all(b[0] < a[1] - 999 for a, b in zip(bounds, bounds[1:]))
 
 
+def test_a_window_starts_early_to_hold_a_gap_that_runs_out_of_the_window_before():
+    # Marker 0 is missing over 700–1100: out of the first window [0, 1000), and into the
+    # second at its usual start (800). The second window starts early enough to hold it
+    # whole, and the windowed linear fill is then the whole clip's (the first window's
+    # extrapolation weighs EDGE_GAP_WEIGHT); from fixed starts it was extrapolated from
+    # each side and cross-faded.
+    from mocapfill import pipeline
+
+    truth = smooth_clip(3000, 6)
+    matrix, observed = with_gap(with_gap(truth, 0, 700, 1100), 2, 1750, 1900).matrix()
+    fixed = pipeline.window_bounds(3000, 1000, 200)
+    assert fixed == [(0, 1000), (800, 1800), (1600, 2600), (2000, 3000)]
+    bounds = pipeline.window_bounds(3000, 1000, 200, observed)
+    assert bounds[0] == (0, 1000) and bounds[-1] == (2000, 3000)
+    assert any(a < 700 and b > 1100 for a, b in bounds)
+    assert all(b[0] - a[0] >= 500 for a, b in zip(bounds, bounds[1:-1]))
+    # A gap longer than a window, or reaching the clip's end, moves nothing.
+    far, _ = with_gap(with_gap(truth, 0, 700, 1800), 1, 900, 3000).matrix()
+    assert pipeline.window_bounds(3000, 1000, 200, ~np.isnan(far)) == fixed
+    whole = pipeline.complete_matrix(matrix, observed, "linear", window_frames=0)
+    windowed = pipeline.complete_matrix(matrix, observed, "linear", window_frames=1000,
+                                        window_overlap=200)
+    assert np.abs(windowed - whole).max() < 1e-3 * np.abs(whole[0:3, 700:1100]).max()
+
+
 def test_windowed_solve_is_close_to_the_whole_clip_solve():
     from mocapfill.pipeline import complete_matrix
 
