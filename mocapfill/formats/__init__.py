@@ -231,6 +231,9 @@ def for_output(motion: Motion, path: str | os.PathLike) -> tuple[Motion, tuple[s
         # A TRC states a DataRate and a CSV a Time column: the writers fall back on 120 Hz
         # (_text.writable_rate), which the user should hear of, not find in the file.
         notes.append("the clip's frame rate is not known (0 Hz): written as 120 Hz")
+    if suffix == ".c3d" and not module.stores_first_frame(motion):
+        notes.append(f"first frame {motion.first_frame} does not fit a C3D (0 to "
+                     f"{0xFFFFFFFF - motion.n_frames}): frames numbered from 1")
     return motion, tuple(notes)
 
 

@@ -611,6 +611,12 @@ def _label_chunks(labels: list[str]) -> list[list[str]]:
     return chunks
 
 
+def stores_first_frame(motion: Motion) -> bool:
+    """Whether a new C3D can hold the clip's first frame number (TRIAL:ACTUAL_START_FIELD
+    and ACTUAL_END_FIELD: unsigned 32-bit frame numbers); one that cannot is written as 1."""
+    return 0 <= motion.first_frame <= 0xFFFFFFFF - motion.n_frames
+
+
 def _new_file(motion: Motion) -> bytes:
     """A new Intel float C3D: header, POINT/ANALOG/TRIAL parameters, float32 frames.
 
@@ -625,7 +631,7 @@ def _new_file(motion: Motion) -> bytes:
     scale = -(float(finite.max()) / 32000 if finite.size and finite.max() > 0 else 1.0)
     # Frame numbers past 65535 live in TRIAL:ACTUAL_START_FIELD / ACTUAL_END_FIELD (two
     # 16-bit words each); the header's 16-bit words then hold 65535.
-    first_frame = motion.first_frame if 0 <= motion.first_frame <= 0xFFFFFFFF - n_frames else 1
+    first_frame = motion.first_frame if stores_first_frame(motion) else 1
     last_frame = first_frame + n_frames - 1
     labels = list(motion.labels)
     chunks = _label_chunks(labels)

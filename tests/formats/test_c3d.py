@@ -440,6 +440,19 @@ def test_new_file_numbered_from_0_or_past_65535_keeps_every_frame_and_its_number
     assert ezc3d_points(out).shape[0] == 30
 
 
+@pytest.mark.parametrize("first_frame", [-5, 2**40])
+def test_a_first_frame_no_c3d_holds_is_written_as_1_with_a_note(tmp_path, first_frame):
+    # An NPZ (or a library caller) may number frames from anywhere; TRIAL holds 0 to
+    # 2³² − 1.
+    motion = in_memory_motion(first_frame=first_frame)
+    notes = formats.write(motion, tmp_path / "a.c3d")
+    assert notes == (f"first frame {first_frame} does not fit a C3D (0 to "
+                     f"{0xFFFFFFFF - 30}): frames numbered from 1",)
+    assert c3d.read(tmp_path / "a.c3d").first_frame == 1
+    kept = formats.write(in_memory_motion(first_frame=70_000), tmp_path / "b.c3d")
+    assert not any("first frame" in note for note in kept)
+
+
 def test_new_file_stores_gaps_as_zero_with_residual_minus_one(tmp_path):
     out = tmp_path / "new.c3d"
     c3d.write(in_memory_motion(), out)
