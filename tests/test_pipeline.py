@@ -303,6 +303,28 @@ def test_a_window_starts_early_to_hold_a_gap_that_runs_out_of_the_window_before(
     assert np.abs(windowed - whole).max() < 1e-3 * np.abs(whole[0:3, 700:1100]).max()
 
 
+def test_windows_hold_whole_every_interior_gap_up_to_a_third_of_a_window():
+    from mocapfill.gaps import missing_runs
+    from mocapfill.pipeline import window_bounds
+
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        n, rows = int(rng.integers(1001, 6000)), int(rng.integers(1, 12))
+        observed = np.ones((rows, n), bool)
+        for _ in range(int(rng.integers(0, 8))):
+            length = int(rng.integers(1, 700))
+            start = int(rng.integers(0, n - length))
+            observed[int(rng.integers(rows)), start:start + length] = False
+        bounds = window_bounds(n, 1000, 200, observed)
+        assert bounds[0][0] == 0 and bounds[-1][1] == n
+        assert all(stop - start == 1000 for start, stop in bounds)
+        assert all(a[0] < b[0] <= a[1] - 200 for a, b in zip(bounds, bounds[1:]))
+        for row in observed:
+            for start, stop in missing_runs(row):
+                if 0 < start and stop < n and stop - start <= 333:
+                    assert any(a < start and stop < b for a, b in bounds), (start, stop)
+
+
 def test_windowed_solve_is_close_to_the_whole_clip_solve():
     from mocapfill.pipeline import complete_matrix
 
