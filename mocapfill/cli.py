@@ -623,13 +623,14 @@ def info(in_path: Path, repaired_path: Path | None, as_json: bool, gaps_only: bo
 
     With REPAIRED, the table shows each marker before and after the repair.
     """
-    from .report import format_info, format_info_before_after, info_dict
+    from .report import check_same_clip, format_info, format_info_before_after, info_dict
 
     motion = _read(in_path, zero_is_missing)
     repaired = None if repaired_path is None else _read(repaired_path, zero_is_missing)
     if as_json:
         payload = info_dict(motion)
         if repaired is not None:
+            check_same_clip(motion, repaired)     # as the table does
             payload = {"before": payload, "after": info_dict(repaired)}
         click.echo(json.dumps(payload))
     elif repaired is not None:

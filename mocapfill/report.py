@@ -64,8 +64,9 @@ def format_info(motion: Motion, gaps_only: bool = False) -> str:
     return "\n".join(lines)
 
 
-def format_info_before_after(before: Motion, after: Motion, gaps_only: bool = False) -> str:
-    """Per-marker missing n/N, gaps and longest gap before and after a repair."""
+def check_same_clip(before: Motion, after: Motion) -> None:
+    """A FormatError naming ``after`` unless it has ``before``'s markers and frames (the
+    before/after table of ``mocapfill info``, as text or JSON)."""
     if before.n_frames != after.n_frames or before.n_markers != after.n_markers:
         raise FormatError(after.path, f"does not match the original in markers × frames "
                                       f"({after.n_markers} × {after.n_frames}, the original "
@@ -74,6 +75,11 @@ def format_info_before_after(before: Motion, after: Motion, gaps_only: bool = Fa
         a, b = next((a, b) for a, b in zip(before.labels, after.labels) if a != b)
         raise FormatError(after.path, f"does not match the original's marker names "
                                       f"({b!r} where it has {a!r})")
+
+
+def format_info_before_after(before: Motion, after: Motion, gaps_only: bool = False) -> str:
+    """Per-marker missing n/N, gaps and longest gap before and after a repair."""
+    check_same_clip(before, after)
     rows_before, rows_after = summarise(before), summarise(after)
     width = max([6] + [len(r.label) for r in rows_before])
     lines = [f"{before.path or 'before'} -> {after.path or 'after'}: missing samples "

@@ -103,6 +103,15 @@ def test_info_before_after_names_what_differs(clip_files):
     assert "(10 × 299, the original 10 × 300)" in size.stderr
 
 
+def test_info_json_refuses_a_repaired_file_that_does_not_match(clip_files):
+    # --json printed "before" and "after" tables of two different clips without a word,
+    # where the table refuses them.
+    formats.write(smooth_clip(299, 10), clip_files / "short.npz")
+    result = run("info", clip_files / "gapped.npz", clip_files / "short.npz", "--json")
+    assert result.exit_code == 123 and result.stdout == ""
+    assert "(10 × 299, the original 10 × 300)" in result.stderr
+
+
 def test_gaps_report_lists_every_gap(clip_files):
     report = clip_files / "gaps.csv"
     run("repair", clip_files / "gapped.npz", clip_files / "o.npz", "--max-gap", "0.4s",
