@@ -628,10 +628,11 @@ def info(in_path: Path, repaired_path: Path | None, as_json: bool, gaps_only: bo
     motion = _read(in_path, zero_is_missing)
     repaired = None if repaired_path is None else _read(repaired_path, zero_is_missing)
     if as_json:
-        payload = info_dict(motion)
+        listed = motion if gaps_only else None
+        payload = info_dict(motion, listed)
         if repaired is not None:
             check_same_clip(motion, repaired)     # as the table does
-            payload = {"before": payload, "after": info_dict(repaired)}
+            payload = {"before": payload, "after": info_dict(repaired, listed)}
         click.echo(json.dumps(payload))
     elif repaired is not None:
         click.echo(format_info_before_after(motion, repaired, gaps_only=gaps_only))

@@ -18,9 +18,19 @@ def reader_notes(motion: Motion) -> tuple[str, ...]:
     return tuple(getattr(motion.source, "notes", None) or ())
 
 
-def info_dict(motion: Motion) -> dict:
-    """The per-marker table of ``mocapfill info --json``."""
+def info_dict(motion: Motion, listed: Motion | None = None) -> dict:
+    """The per-marker table of ``mocapfill info --json``.
+
+    With ``listed`` (``--gaps-only``), only the markers with missing samples in that clip
+    are in ``per_marker``: the clip itself, or the original of a repaired one.
+    """
     rows = summarise(motion)
+    if listed is not None:
+        keep = (~listed.observed).any(axis=0)
+        rows = [r for r, k in zip(rows, keep) if k]
+        fillable = [f for f, k in zip(motion.fillable, keep) if k]
+    else:
+        fillable = list(motion.fillable)
     return {
         "file": None if motion.path is None else str(motion.path),
         "frames": motion.n_frames, "markers": motion.n_markers, "rate_hz": motion.rate,
@@ -34,7 +44,7 @@ def info_dict(motion: Motion) -> dict:
                         "longest_gap_s": (round(r.longest_s, 4) if math.isfinite(r.longest_s)
                                           else None),
                         "fillable": bool(f)}
-                       for r, f in zip(rows, motion.fillable)],
+                       for r, f in zip(rows, fillable)],
     }
 
 

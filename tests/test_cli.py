@@ -112,6 +112,18 @@ def test_info_json_refuses_a_repaired_file_that_does_not_match(clip_files):
     assert "(10 × 299, the original 10 × 300)" in result.stderr
 
 
+def test_info_json_gaps_only_lists_only_markers_with_missing_samples(clip_files):
+    # --gaps-only was ignored with --json: every marker was listed.
+    alone = json.loads(run("info", clip_files / "gapped.npz", "--json", "--gaps-only").stdout)
+    assert [r["marker"] for r in alone["per_marker"]] == ["MK01", "MK04"]
+    assert alone["missing_samples"] == 100
+    run("repair", clip_files / "gapped.npz", clip_files / "o.npz", "--method", "linear")
+    both = json.loads(run("info", clip_files / "gapped.npz", clip_files / "o.npz", "--json",
+                          "--gaps-only").stdout)
+    assert [r["marker"] for r in both["before"]["per_marker"]] == ["MK01", "MK04"]
+    assert [r["marker"] for r in both["after"]["per_marker"]] == ["MK01", "MK04"]
+
+
 def test_gaps_report_lists_every_gap(clip_files):
     report = clip_files / "gaps.csv"
     run("repair", clip_files / "gapped.npz", clip_files / "o.npz", "--max-gap", "0.4s",
