@@ -479,8 +479,8 @@ def _solver_options(**values) -> dict:
 @click.option("--ml", type=int, default=None,
               help="Continuous missing: number of consecutive frames removed from each of "
                    "--markers random markers (interior runs, never touching the clip ends).")
-@click.option("--markers", "n_markers", type=int, default=10, show_default=True,
-              help="Number of markers hit by --ml.")
+@click.option("--markers", "n_markers", type=int, default=None,
+              help="Number of markers hit by --ml (default 10); --mr takes no --markers.")
 @click.option("--seed", type=int, default=None,
               help="Random seed; the same seed gives the same gaps.")
 @_zero_option
@@ -494,6 +494,12 @@ def simulate(in_path: Path, out_path: Path, mr, ml, n_markers, seed, zero_is_mis
         simulation_candidates,
     )
 
+    if n_markers is not None and mr is not None and ml is None:
+        from .errors import ParameterError
+
+        # --mr removes a fraction of every frame's markers: a count would be ignored.
+        raise ParameterError("--markers applies to --ml (continuous missing), not --mr")
+    n_markers = 10 if n_markers is None else n_markers
     formats.check_output(out_path, in_path)
     motion = _read(in_path, zero_is_missing)
     # A skeleton clip written back to its own format loses joint channels (nan cells);

@@ -188,6 +188,9 @@ def test_check_exits_1_when_gaps_are_left(clip_files):
      "--methods ' , ' names no method"),
     (["bench", "accuracy", "--quick", "--methods", "linear,bogus"], 2,
      "unknown method(s) bogus"),
+    # --markers counts the markers --ml hits; with --mr it was ignored without a word.
+    (["simulate", "truth.npz", "s.npz", "--mr", "0.4", "--markers", "5"], 2,
+     "--markers applies to --ml"),
 ])
 def test_bad_input_gives_one_line_error_and_exit_code(clip_files, monkeypatch, args, code, words):
     monkeypatch.chdir(clip_files)
