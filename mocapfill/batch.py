@@ -281,8 +281,14 @@ def discover(paths: Iterable[str | os.PathLike],
 def _is_up_to_date(source: Path, output: Path) -> bool:
     # Strictly newer: on a coarse-clock file system an equal time could hide an input
     # changed after its output was written; redoing a file is safe, skipping it is not.
+    # A folder where the output goes is no output: the file is repaired and its write
+    # fails, naming the folder, rather than skipped on every rerun.
+    import stat
+
     try:
-        return output.stat().st_mtime_ns > source.stat().st_mtime_ns
+        written = output.stat()
+        return (not stat.S_ISDIR(written.st_mode)
+                and written.st_mtime_ns > source.stat().st_mtime_ns)
     except FileNotFoundError:
         return False
 

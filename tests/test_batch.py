@@ -238,6 +238,19 @@ def test_rerun_skips_up_to_date_outputs_and_redoes_changed_inputs(clean_tree, tm
     assert set(statuses.values()) == {"skipped"}
 
 
+def test_a_folder_where_an_output_goes_is_not_an_up_to_date_output(clean_tree, tmp_path):
+    # A folder newer than the input at the output's path was "skipped" (exit 0): the file
+    # was never repaired, and no rerun would repair it.
+    root, files = clean_tree
+    out = tmp_path / "out"
+    (out / files["gapped0"].relative_to(root)).mkdir(parents=True)
+    result = run(root, "-o", out, "-j", "1", "--report", tmp_path / "r.json", *LINEAR)
+    assert result.exit_code == 123, result.output
+    record = next(r for r in _report(tmp_path / "r.json")["files"]
+                  if Path(r["input"]) == files["gapped0"])
+    assert record["status"] == "failed" and "folder" in record["reason"]
+
+
 def test_force_redoes_up_to_date_outputs(clean_tree, tmp_path):
     root, _ = clean_tree
     out = tmp_path / "out"
