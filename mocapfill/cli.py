@@ -454,17 +454,10 @@ def _finish_batch(report, report_path: Path | None) -> None:
 
 
 def _solver_options(**values) -> dict:
-    from .errors import ParameterError
+    from .pipeline import check_solver_options
 
     options = {k: v for k, v in values.items() if v is not None}   # finite: RepairOptions
-    positive = ("lam", "eta0", "tol", "max_iter", "rank")
-    for key in positive:
-        if key in options and not options[key] > 0:
-            raise ParameterError(f"--{key.replace('_', '-')} must be > 0, got {options[key]}")
-    if "mu" in options and options["mu"] < 0:
-        raise ParameterError(f"--mu must be ≥ 0, got {options['mu']}")
-    if "rho" in options and not options["rho"] > 1:
-        raise ParameterError(f"--rho must be > 1, got {options['rho']}")
+    check_solver_options(options)       # before reading any file
     return options
 
 

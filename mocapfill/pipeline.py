@@ -11,6 +11,7 @@ import time
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
+from numbers import Real
 from typing import Callable
 
 import numpy as np
@@ -105,9 +106,37 @@ class RepairOptions:
         if unknown:
             given = ", ".join(f"--{name.replace('_', '-')}" for name in unknown)
             raise ParameterError(f"{given} does not apply to method {self.method!r}")
-        for name, value in self.solver_options.items():
-            if isinstance(value, (int, float)) and not math.isfinite(value):
-                raise ParameterError(f"--{name.replace('_', '-')} must be finite, got {value}")
+        check_solver_options(self.solver_options)
+
+
+# The ranges of the options the command line offers (--rank ... --max-iter), whatever the
+# method: checked for callers from Python as for the command line.
+_COUNTS = ("rank", "max_iter")
+_POSITIVE = ("lam", "eta0", "tol", "max_iter", "rank")
+
+
+def check_solver_options(options: dict) -> None:
+    """A ParameterError for an option that is not finite, or a value of rank, lam, mu,
+    rho, eta0, tol or max_iter out of its range (the other options, and None, pass)."""
+    def refuse(name: str, rule: str) -> None:
+        raise ParameterError(f"--{name.replace('_', '-')} must be {rule}, got {options[name]}")
+
+    for name, value in options.items():
+        if isinstance(value, (int, float)) and not math.isfinite(value):
+            refuse(name, "finite")
+
+    for name in _COUNTS:
+        value = options.get(name)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, Real)
+                                  or not float(value).is_integer()):
+            refuse(name, "a whole number")
+    for name in _POSITIVE:
+        if options.get(name) is not None and not options[name] > 0:
+            refuse(name, "> 0")
+    if options.get("mu") is not None and not options["mu"] >= 0:
+        refuse("mu", "≥ 0")
+    if options.get("rho") is not None and not options["rho"] > 1:
+        refuse("rho", "> 1")
 
 
 END_MARGIN = 0.1

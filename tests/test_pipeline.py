@@ -133,6 +133,16 @@ def test_bad_options_are_rejected(kwargs):
         RepairOptions(**kwargs)
 
 
+@pytest.mark.parametrize("solver_options", [
+    {"rank": -1}, {"rank": 0}, {"rank": 2.5}, {"max_iter": 0}, {"max_iter": 10.5},
+    {"tol": -1.0}, {"lam": 0.0}, {"eta0": -0.1}, {"mu": -1.0}, {"rho": 1.0}])
+def test_solver_options_out_of_range_are_rejected_from_python_too(solver_options):
+    # Only the command line checked these: from Python a negative rank was a bare
+    # ValueError from inside the solver, and max_iter=0 or tol=-1 a silent repair.
+    with pytest.raises(ParameterError, match="must be"):
+        RepairOptions(method="trnn-lowrank", solver_options=solver_options)
+
+
 def teleport(matrix, observed, **_):
     """A broken method: fills every missing entry 1000 units away."""
     return np.where(observed, matrix, 1000.0)
