@@ -66,7 +66,8 @@ class RepairOptions:
         nearest observed value, or "extrapolate" with the method's fill clamped to the
         marker's observed range widened by ``END_MARGIN`` of that range on each side.
     markers, exclude
-        Names or shell globs, matched with or without a label's ``Subject:`` prefix: only
+        Names or shell globs (one pattern may be given as a string), matched with or
+        without a label's ``Subject:`` prefix: only
         markers matching ``markers`` (all when empty) and not matching ``exclude`` are
         filled. Every marker still serves as evidence. ``markers``, or ``exclude``, that
         match no marker of the clip (their patterns together) is a ParameterError.
@@ -92,6 +93,10 @@ class RepairOptions:
     space: str = "positions"
 
     def __post_init__(self) -> None:
+        for name in ("markers", "exclude"):
+            # One pattern given as a string, not its letters as patterns ("L*": L and *).
+            if isinstance(getattr(self, name), str):
+                object.__setattr__(self, name, (getattr(self, name),))
         if self.ends not in ENDS:
             raise ParameterError(f"ends must be one of {', '.join(ENDS)}, got {self.ends!r}")
         if self.max_gap_frames is not None and self.max_gap_frames < 0:

@@ -112,6 +112,16 @@ def test_markers_and_exclude_restrict_what_is_filled():
     repair(gapped, RepairOptions(exclude=("MK0[12]", "Female:*")))
 
 
+def test_a_single_pattern_given_as_a_string_is_one_pattern_not_its_letters():
+    # markers="MK02" was read as the patterns M, K, 0, 2 (and "MK0*" as ..., "*": every
+    # marker filled).
+    _, gapped = gapped_clip()
+    only = repair(gapped, RepairOptions(method="linear", markers="MK02")).motion
+    assert only.observed[:, 2].all() and not only.observed[200:230, 5].any()
+    without = repair(gapped, RepairOptions(method="linear", exclude="MK0*")).motion
+    assert (without.observed == gapped.observed).all()
+
+
 def test_non_marker_points_are_never_filled():
     _, gapped = gapped_clip()
     fillable = np.ones(gapped.n_markers, bool)
