@@ -301,11 +301,18 @@ def plan(paths: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None =
 
     Raises ``ParameterError`` for a batch that cannot be planned safely: neither or both of
     ``out_dir`` and ``in_place``, an output that would overwrite an input, two inputs
-    mapped to the same output.
+    mapped to the same output; and for a ``max_gap_s`` or ``zero_is_missing`` out of range.
     """
     if (out_dir is None) == (not in_place):
         raise ParameterError("give an output folder (-o OUTDIR) or in-place (--in-place), "
                              "not both")
+    # Checked once here: each file would otherwise fail alone with the same error.
+    if max_gap_s is not None and not 0 <= max_gap_s < float("inf"):
+        raise ParameterError(f"--max-gap must be a finite number of seconds ≥ 0, got "
+                             f"{max_gap_s}")
+    if zero_is_missing not in ("auto", "on", "off"):
+        raise ParameterError(f"--zero-is-missing must be auto, on or off, got "
+                             f"{zero_is_missing!r}")
     if suffix is not None:
         suffix = suffix if suffix.startswith(".") else f".{suffix}"
         if in_place:

@@ -355,6 +355,19 @@ def test_repair_many_from_python(tree, tmp_path):
     assert report.frames == 21 * 240
 
 
+@pytest.mark.parametrize("kwargs", [dict(max_gap_s=-1.0), dict(max_gap_s=float("nan")),
+                                    dict(max_gap_s=float("inf")),
+                                    dict(zero_is_missing="maybe")])
+def test_repair_many_refuses_bad_arguments_before_any_file(clean_tree, tmp_path, kwargs):
+    # These failed every file one by one ("ValueError: cannot convert float NaN to
+    # integer"), where a bad --jobs or --suffix is a ParameterError up front.
+    root, _ = clean_tree
+    with pytest.raises(mocapfill.ParameterError):
+        mocapfill.repair_many([root], tmp_path / "out", jobs=1,
+                              options=RepairOptions(method="linear"), **kwargs)
+    assert not (tmp_path / "out").exists()
+
+
 def test_max_gap_in_seconds_fails_a_file_without_rate_and_converts_at_each_files_rate(
         tmp_path):
     root = tmp_path / "data"
