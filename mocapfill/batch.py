@@ -679,6 +679,9 @@ def _run_dask(jobs: Sequence[FileJob], address: str,
         client = Client(address, timeout="20s")
     except (OSError, TimeoutError) as exc:
         raise ParameterError(f"cannot reach the Dask scheduler at {address} ({exc})") from None
+    except ValueError as exc:       # Dask parses it first: 'garbage', '', no port
+        raise ParameterError(f"--scheduler: not a Dask scheduler address {address!r} ({exc}); "
+                             "give one such as tcp://host:8786") from None
     # Workers see the files through a shared file system: send absolute paths (the
     # workers' working folder is not ours), never the data.
     remote = [replace(job, input=job.input.absolute(), output=job.output.absolute())

@@ -342,6 +342,19 @@ def test_batch_usage_errors_exit_2_with_one_line(tmp_path, monkeypatch, args, wo
     assert words in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.parametrize("address", ["garbage", ""])
+def test_a_malformed_scheduler_address_is_a_usage_error_not_a_traceback(tmp_path,
+                                                                       monkeypatch, address):
+    if importlib.util.find_spec("distributed") is None:
+        pytest.skip("dask.distributed is not installed")
+    monkeypatch.chdir(tmp_path)
+    formats.write(with_gap(smooth_clip(50, 3), 1, 20, 25), tmp_path / "x.npz")
+    result = run("x.npz", "-o", "out", "--scheduler", address, *LINEAR)
+    assert result.exit_code == 2, result.output
+    assert f"Dask scheduler address {address!r}" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
 def test_repair_many_from_python(tree, tmp_path):
     root, _ = tree
     calls = []
