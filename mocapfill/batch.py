@@ -726,7 +726,7 @@ def repair_many(paths: Iterable[str | os.PathLike] | str | os.PathLike,
         ``RepairOptions`` applied to every file (default: ``RepairOptions()``).
     jobs
         Local worker processes (default: all cores), each with single-threaded BLAS;
-        1 runs in this process.
+        1 runs in this process. Not with ``scheduler``.
     scheduler
         Address of a ``dask.distributed`` scheduler (``"tcp://host:8786"``); the workers
         read and write the files, which they must see at the same paths.
@@ -753,7 +753,8 @@ def repair_many(paths: Iterable[str | os.PathLike] | str | os.PathLike,
     Raises
     ------
     ParameterError
-        Nothing safe to plan (see ``plan``), bad ``jobs``, Dask missing or unreachable.
+        Nothing safe to plan (see ``plan``), bad ``jobs`` (or any with ``scheduler``), Dask
+        missing or unreachable, a malformed scheduler address.
     BatchInterrupted
         Ctrl-C; carries the report of the files finished so far.
     """
@@ -762,6 +763,9 @@ def repair_many(paths: Iterable[str | os.PathLike] | str | os.PathLike,
         paths = [paths]
     if jobs is not None and jobs < 1:
         raise ParameterError(f"--jobs must be ≥ 1, got {jobs}")
+    if jobs is not None and scheduler is not None:
+        raise ParameterError("--jobs does not apply with --scheduler: the cluster's workers "
+                             "(dask worker --nworkers) repair the files")
     todo, skipped = plan(paths, out_dir, options=options, in_place=in_place, force=force,
                          zero_is_missing=zero_is_missing, max_gap_s=max_gap_s, suffix=suffix)
     finished: list[FileRecord] = []

@@ -187,7 +187,8 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
               help="Batch: redo files whose output is newer than their input.")
 @click.option("-j", "--jobs", type=int, default=None,
               help="Batch: worker processes on this machine (each with single-threaded "
-                   "BLAS). Default: all cores; 1 runs in this process.")
+                   "BLAS). Default: all cores; 1 runs in this process. Not with "
+                   "--scheduler.")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Batch: run on a dask.distributed cluster (tcp://host:8786) whose workers "
                    "see the same files (pip install mocapfill[dask]).")

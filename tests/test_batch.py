@@ -330,6 +330,9 @@ def test_globs_mirror_the_tree_under_their_fixed_folder(clean_tree, tmp_path):
     (["x.npz", "-o", "out", "--report", "folder.json"], "--report must name a .json file"),
     (["x.npz", "x.csv", "-o", "out", "--suffix", ".trc"],
      "differ only in their suffix, which --suffix replaces"),
+    # -j was ignored without a word: the cluster's workers run the files.
+    (["x.npz", "-o", "out", "-j", "4", "--scheduler", "tcp://127.0.0.1:8786"],
+     "--jobs does not apply with --scheduler"),
 ])
 def test_batch_usage_errors_exit_2_with_one_line(tmp_path, monkeypatch, args, words):
     monkeypatch.chdir(tmp_path)
