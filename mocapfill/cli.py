@@ -205,20 +205,26 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
                    "paper's comparison methods.")
 @click.option("--rank", type=int, default=None,
               help="Truncated rank r (number of singular values not penalised). Default: "
-                   "min(15, estimated rank).")
+                   "min(15, estimated rank) (trnn, trnn-paper, gaussian) / 10 (psvt).")
 @click.option("--lam", type=float, default=None,
               help="λ, weight of the sparse-outlier term (unitless; data are scaled to unit "
-                   "RMS before solving). Default 100/sqrt(max(m, n)).")
+                   "RMS before solving). Default 100/sqrt(max(m, n)) (trnn, trnn-paper, "
+                   "tsmc) / 1/sqrt(max(m, n)) (ialm, psvt).")
 @click.option("--mu", type=float, default=None,
-              help="μ, weight of the temporal smoothness term (unitless). Default 100.")
+              help="μ, weight of the temporal smoothness term (unitless). Default 100 "
+                   "(trnn, trnn-paper, tsmc).")
 @click.option("--rho", type=float, default=None,
               help="ρ > 1, growth factor of the penalty η per iteration. Default 1.2 "
-                   "(trnn) / 1.4 (trnn-paper).")
+                   "(trnn, tsmc) / 1.4 (trnn-paper) / 1.5 (ialm, psvt).")
 @click.option("--eta0", type=float, default=None,
-              help="η₀ > 0, initial penalty. Default 0.05 (trnn) / 1e-5 (trnn-paper).")
+              help="η₀ > 0, initial penalty. Default 0.05 (trnn) / 1e-5 (trnn-paper) / "
+                   "0.01 (tsmc).")
 @click.option("--tol", type=float, default=None,
-              help="ε, relative stopping tolerance. Default 1e-4 (trnn and trnn-paper).")
-@click.option("--max-iter", type=int, default=None, help="Iteration cap. Default 500.")
+              help="ε, relative stopping tolerance. Default 1e-4 (trnn, trnn-paper, "
+                   "gaussian, svt) / 1e-5 (tsmc) / 1e-7 (ialm, psvt).")
+@click.option("--max-iter", type=int, default=None,
+              help="Iteration cap. Default 500 (trnn, trnn-paper, tsmc) / 1000 (svt, ialm, "
+                   "psvt) / 60 (gaussian).")
 @click.option("--max-gap", default=None, metavar="FRAMES|SECONDSs",
               help="Leave gaps longer than this missing (and report them): frames (40) or "
                    "seconds (0.5s). Default: fill every length.")

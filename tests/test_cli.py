@@ -1,6 +1,7 @@
 """The command line: exit codes, one-line errors, atomic outputs, JSON shapes."""
 import json
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -356,6 +357,28 @@ def test_cli_method_names_match_the_solver_registry():
     from mocapfill.solvers import METHODS
 
     assert set(METHOD_NAMES) == set(METHODS)
+
+
+@pytest.mark.parametrize("option", ["rho", "eta0", "tol", "max_iter"])
+def test_repair_help_states_each_methods_own_default(option):
+    # "--max-iter: Default 500." held for the TrNN family and tsmc only (svt, ialm and
+    # psvt stop at 1000, gaussian at 60); the same for --tol, --rho and --eta0.
+    import inspect
+
+    from mocapfill.solvers import METHODS, get_method
+
+    help_text = next(" ".join(p.help.split()) for p in main.commands["repair"].params
+                     if p.name == option)
+    for method in METHODS:
+        default = inspect.signature(get_method(method)).parameters.get(option)
+        if method == "trnn" or default is None:     # trnn: trnn-lowrank's, stated as trnn
+            continue
+        value = default.default
+        shown = (f"{value:.0e}" if value < 1e-3 else f"{value:g}").replace("e-0", "e-")
+        named = "trnn" if method == "trnn-lowrank" else method
+        said = [part for part in help_text.split(" / ") if re.search(rf"\b{shown}\b", part)]
+        assert any(re.search(rf"[(, ]{re.escape(named)}[),]", part) for part in said), \
+            (method, shown, help_text)
 
 
 def test_a_bad_thread_count_is_a_usage_error_and_writes_nothing(clip_files, monkeypatch):
