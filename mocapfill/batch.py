@@ -218,6 +218,14 @@ def _same_path(a: Path, b: Path | None) -> bool:
     return b is not None and a.exists() and b.exists() and os.path.samefile(a, b)
 
 
+def _inside(path: Path, folder: Path | None) -> bool:
+    """Whether ``path`` is ``folder`` or lies under it (a glob's match in the output
+    folder)."""
+    if folder is None or not folder.exists():
+        return False
+    return path.resolve().is_relative_to(folder.resolve())
+
+
 def _glob_base(pattern: str) -> Path:
     """The folder part of a glob before its first wildcard: 'data/*/x*.c3d' -> 'data'."""
     parts = Path(pattern).parts
@@ -237,8 +245,8 @@ def discover(paths: Iterable[str | os.PathLike],
     named explicitly); the output path mirrors the file's place under the folder. A glob's
     matches mirror their place under the glob's fixed leading folder; a plain file keeps
     just its name. Hidden files and folders, and the folder ``exclude`` (the output folder,
-    when it lies inside an input folder), are never picked up. A file reached twice is
-    listed once.
+    when it lies inside an input folder or a glob matches in it), are never picked up. A
+    file reached twice is listed once.
 
     Raises
     ------
@@ -266,6 +274,8 @@ def discover(paths: Iterable[str | os.PathLike],
                 raise ParameterError(f"{text}: no file matches this pattern")
             base = _glob_base(text)
             for match in matches:
+                if _inside(match, exclude_path):    # the outputs of an earlier run
+                    continue
                 if match.is_dir():
                     pairs += [(f, f.relative_to(base)) for f in _walk(match, exclude_path)]
                 elif _is_motion_file(match):

@@ -266,6 +266,19 @@ def test_output_folder_inside_the_input_folder_is_not_scanned(clean_tree):
     assert again.stderr.startswith("0 repaired, 21 skipped in ")
 
 
+@pytest.mark.parametrize("pattern", ["**/*.npz", "*"])
+def test_output_folder_inside_a_globs_folder_is_not_scanned(clean_tree, pattern):
+    # A glob matched the outputs of the first run, so the rerun that should resume was
+    # refused ("out/complete.npz is an input"), or repaired the outputs again.
+    root, _ = clean_tree
+    first = run(f"{root}/{pattern}", "-o", root / "out", "-j", "1", *LINEAR)
+    assert first.exit_code == 0, first.output
+    again = run(f"{root}/{pattern}", "-o", root / "out", "-j", "1", *LINEAR)
+    assert again.exit_code == 0, again.output
+    assert again.stderr.startswith("0 repaired, 21 skipped in ")
+    assert not (root / "out" / "out").exists()
+
+
 def test_refuses_to_write_outputs_over_inputs_without_in_place(clean_tree):
     root, files = clean_tree
     before = files["gapped0"].read_bytes()
