@@ -16,7 +16,13 @@ Reading
       is not a number is an error.
     * A file with fewer complete frame lines than ``Frames:`` declares (a truncated file) or
       more is rejected with a FormatError giving both counts: a patching writer must not
-      echo a damaged file, and the user should know the clip is incomplete.
+      echo a damaged file, and the user should know the clip is incomplete. A last frame
+      line the file ends inside (no line ending, no whitespace after its last value) is
+      not complete when its last value looks cut short: not a number (``-7.``, ``1e``) or
+      printed less precisely than the same channel in the other frames and its joint's
+      other channels (``8.9931`` cut to ``8.99``; the test of CSV, TRC and AMC,
+      ``_text.printed_whole``). Many tools end a file without a line ending, so a last
+      value printed like the others is read as data.
     * A ``Frame Time`` that is not a positive, finite number of seconds (``inf``, ``0``,
       ``nan``) is rejected too. ``Frames: 0`` reads as a clip of no frames (``info`` can
       report it); :func:`mocapfill.formats.write` refuses to write a clip of no frames.
@@ -49,7 +55,7 @@ from ..errors import FormatError
 from ..motion import Motion
 from ..skeleton import ChannelState, Skeleton, motion_with_channels, patch_tokens, positions_edited
 from . import skeleton_input_needed
-from ._text import LATIN1_BOM, latin1_label
+from ._text import LATIN1_BOM, latin1_label, printed_whole
 
 _TOKEN = re.compile(r"\S+")
 _DECIMALS = re.compile(r"\.(\d+)")
@@ -213,6 +219,39 @@ def _file_decimals(frame_text: list[str]) -> int:
     return min(max(found, 4), 10)
 
 
+def _is_finite(token: str) -> bool:
+    try:
+        return bool(np.isfinite(float(token)))
+    except ValueError:
+        return False
+
+
+def _last_value_cut(lines: tuple[str, ...], frame_lines: list[int], rows: list[list[str]],
+                    tree: _Hierarchy) -> bool:
+    """Whether the file ends inside the last value of its last frame line and that value
+    looks cut short (see the module text); ``rows`` hold every frame's tokens, complete."""
+    index = frame_lines[-1]
+    line = lines[index]
+    if index != len(lines) - 1 or line.endswith(("\n", "\r")) or line[-1].isspace():
+        return False
+    text = rows[-1][-1]
+    try:
+        value = float(text)
+    except ValueError:
+        return True
+    if not np.isfinite(value):
+        return False            # nan is missing whether cut or not; inf is refused anyway
+    last = len(rows[-1]) - 1
+    column = [row[last] for row in rows[:-1] if _is_finite(row[last])]
+    if not column:
+        return False            # nothing to compare with (one frame): read as written
+    joint = next(rotation + translation for rotation, translation
+                 in zip(tree.rotation_columns, tree.translation_columns)
+                 if last in rotation + translation)
+    row = [rows[-1][c] for c in joint if c != last and _is_finite(rows[-1][c])]
+    return not printed_whole(text, column, row)
+
+
 def _read_source(path: Path, scale: float) -> tuple[BvhSource, float]:
     lines = tuple(path.read_bytes().decode("latin-1").splitlines(keepends=True))
     starts = [i for i, line in enumerate(lines) if line.strip().upper() == "MOTION"]
@@ -248,6 +287,9 @@ def _read_source(path: Path, scale: float) -> tuple[BvhSource, float]:
                 break
             raise FormatError(path, f"line {i + 1} holds {len(row)} values, "
                                     f"the HIERARCHY declares {n_channels} channels")
+    if not cut_short and rows and _last_value_cut(lines, frame_lines[:len(rows)], rows, tree):
+        cut_short = f" (line {frame_lines[len(rows) - 1] + 1} is cut short)"
+        rows.pop()
     if len(rows) != declared:
         what = "truncated" if len(rows) < declared else "too many frames"
         raise FormatError(path, f"{what}: {len(rows)} complete frames read, {declared} "

@@ -134,6 +134,49 @@ def test_fewer_frame_lines_than_declared_is_reported_as_truncated(tmp_path):
         bvh.read(path)
 
 
+def without_final_ending(tmp_path: Path, rows: list[str]) -> Path:
+    path = write_bvh(tmp_path, rows)
+    path.write_bytes(path.read_bytes().removesuffix(b"\n"))
+    return path
+
+
+@pytest.mark.parametrize("last", ["-7.6", "-7.", "-7.6e"])
+def test_a_bvh_cut_inside_its_last_value_is_reported_as_truncated(tmp_path, last):
+    rows = ["1.5000 2.2500 3.1250 0.0000 0.0000 0.0000 10.1234 20.4321 30.5555",
+            f"1.5000 2.2500 3.1250 0.0000 0.0000 0.0000 10.1234 20.4321 {last}"]
+    path = without_final_ending(tmp_path, rows)
+    expected = (r"chain\.bvh: truncated: 1 complete frames read, 2 declared "
+                r"\(line 20 is cut short\)$")
+    with pytest.raises(FormatError, match=expected):
+        bvh.read(path)
+
+
+@pytest.mark.parametrize("last", ["-7.6000", "-7.6000 "])
+def test_a_bvh_without_a_final_line_ending_reads_its_last_value_as_data(tmp_path, last):
+    rows = ["1.5000 2.2500 3.1250 0.0000 0.0000 0.0000 10.1234 20.4321 30.5555",
+            f"1.5000 2.2500 3.1250 0.0000 0.0000 0.0000 10.1234 20.4321 {last}"]
+    motion = bvh.read(without_final_ending(tmp_path, rows))
+    assert motion.observed.all() and bvh.channels(motion)[0][1, 8] == -7.6
+
+
+def test_a_one_frame_bvh_without_a_final_line_ending_reads_whole(tmp_path):
+    # One frame gives nothing to compare the last value with: it is read as written.
+    motion = bvh.read(without_final_ending(tmp_path, ["0 0 0 0 0 0 0 0 7.6"]))
+    assert bvh.channels(motion)[0][0, 8] == 7.6
+
+
+def test_real_file_cut_inside_its_last_value_is_reported_as_truncated(tmp_path):
+    data = shared_file("cmu/10_01.bvh").read_bytes().rstrip(b"\r\n")   # ... -7.6754 8.9931
+    cut = tmp_path / "cut.bvh"
+    cut.write_bytes(data[:-2])                                          # ... -7.6754 8.99
+    with pytest.raises(FormatError, match=r"truncated: 801 complete frames read, 802 "
+                                          r"declared \(line \d+ is cut short\)$"):
+        bvh.read(cut)
+    whole = tmp_path / "whole.bvh"
+    whole.write_bytes(data)
+    assert bvh.read(whole).n_frames == 802
+
+
 @pytest.mark.parametrize("frame_time", ["inf", "1e-320"])
 def test_a_frame_time_that_is_not_a_positive_finite_number_is_a_format_error(tmp_path,
                                                                               frame_time):
