@@ -23,7 +23,8 @@ translation and rotation channels of its ancestors, its own translation channels
 its offset turns with its own frame (ASF bones), its own rotation channels.
 
 Rotation channels are unwrapped along time before a repair (so that a completion method
-sees continuous signals) and filled cells are wrapped back into the range the file used.
+sees continuous signals) and filled cells are wrapped back into the range the file used,
+or, where the file stores a channel unwrapped, joined to the stored values beside them.
 """
 from __future__ import annotations
 
@@ -322,8 +323,12 @@ class ChannelState:
 
         Cells observed now and before keep their stored value (a repair restores what was
         observed, and an unwrapped copy may differ from it by a multiple of 360); cells
-        observed only now take ``values`` wrapped into their channel's window; cells not
-        observed become NaN.
+        observed only now take ``values`` wrapped into their channel's window, or, in a
+        channel the file stores unwrapped (no window), moved by the whole turns that
+        separate ``values`` from the stored value at the cell observed before (after, at
+        the start): an unwrapped copy of such a channel may be whole turns off the file
+        from a step over 180 degrees on (a gap in a steep stretch), and its fills were
+        written that far from their stored neighbours. Cells not observed become NaN.
         """
         values = np.asarray(values, dtype=np.float64)
         observed = np.asarray(observed, bool)
@@ -331,7 +336,17 @@ class ChannelState:
             raise ValueError(f"channel matrix must be {self.values.shape}, got "
                              f"{values.shape} values and {observed.shape} mask")
         observed = observed & np.isfinite(values)
-        new = np.where(self.observed, self.values, wrap_into(values, self.windows))
+        filled = wrap_into(values, self.windows)
+        unwrapped = self.skeleton.rotation_channel & np.isnan(self.windows)
+        rows = np.arange(values.shape[0])
+        for c in np.flatnonzero(unwrapped & self.observed.any(axis=0)):
+            seen = self.observed[:, c]
+            before = np.maximum.accumulate(np.where(seen, rows, -1))
+            after = np.minimum.accumulate(np.where(seen, rows, rows.size)[::-1])[::-1]
+            reference = np.where(before >= 0, before, after)
+            turns = np.round((self.values[reference, c] - values[reference, c]) / 360.0)
+            filled[:, c] += 360.0 * np.nan_to_num(turns)
+        new = np.where(self.observed, self.values, filled)
         return replace(self, values=np.where(observed, new, np.nan), observed=observed)
 
     def points(self) -> tuple[np.ndarray, np.ndarray]:

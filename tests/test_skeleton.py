@@ -220,6 +220,32 @@ def test_updated_state_rewraps_only_filled_cells():
     np.testing.assert_allclose(new.values[:, 3], [170.0, -172.5, -175.0])
 
 
+def test_a_fill_in_a_channel_stored_unwrapped_joins_its_stored_neighbour():
+    # Stored beyond ±180 (iClone's -536 .. -717): the file's own continuous angles. A gap
+    # that hides a sample of a steep stretch leaves a step over 180 between observed
+    # cells, which unwrapping turns the short way, 360 away from every later stored
+    # value; fills there were written so (-348.7 between -708.5 and -708.9).
+    values = np.zeros((6, 5))
+    values[:, 3] = [-536.0, np.nan, -717.0, -708.5, np.nan, -708.9]
+    state = ChannelState.as_read(chain(), values)
+    unwrapped, observed = state.unwrapped()
+    np.testing.assert_allclose(unwrapped[:, 3], [-536, np.nan, -357, -348.5, np.nan, -348.9])
+    unwrapped[[1, 4], 3] = [-446.5, -348.7]
+    new = state.updated(unwrapped, np.ones_like(observed))
+    np.testing.assert_allclose(new.values[:, 3], [-536, -446.5, -717, -708.5, -708.7, -708.9])
+
+
+def test_a_fill_at_the_start_of_a_channel_stored_unwrapped_joins_the_cell_after_it():
+    values = np.zeros((3, 5))
+    values[:, 3] = [np.nan, -536.0, -717.0]
+    state = ChannelState.as_read(chain(), values)
+    unwrapped, observed = state.unwrapped()
+    unwrapped[0, 3] = -535.0
+    assert state.updated(unwrapped, np.ones_like(observed)).values[0, 3] == -535.0
+    unwrapped[:, 3] += 720.0                  # values off the stored ones by whole turns
+    assert state.updated(unwrapped, np.ones_like(observed)).values[0, 3] == -535.0
+
+
 def test_updated_state_keeps_stored_value_of_cells_observed_before():
     state = ChannelState.as_read(chain(), np.array([[0, 0, 0, -175.0, 0]]))
     new = state.updated(np.array([[0, 0, 0, 185.0 + 360.0, 0]]), np.ones((1, 5), bool))

@@ -227,6 +227,17 @@ def test_with_channels_rewraps_filled_cells_into_the_files_range(tmp_path):
     np.testing.assert_allclose(filled.source.state.values[:, 3], [170, -176, -172])
 
 
+def test_a_fill_in_a_channel_stored_unwrapped_joins_its_stored_neighbours(tmp_path):
+    from mocapfill.pipeline import RepairOptions, repair
+
+    turns = ["-536.0", "-717.0", "-708.5", "nan", "-708.9", "-709.2"]
+    motion = bvh.read(write_bvh(tmp_path, [f"0 0 0 {z} 0 0 0 0 0" for z in turns]))
+    result = repair(motion, RepairOptions(space="channels", method="linear"))
+    out = tmp_path / "out.bvh"
+    bvh.write(result.motion, out)
+    assert out.read_text().splitlines()[-3].split()[3] == "-708.7000"
+
+
 def test_with_channels_recomputes_positions_by_fk(tmp_path):
     motion = bvh.read(write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0"]))
     values, observed = bvh.channels(motion)
