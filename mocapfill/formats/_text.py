@@ -28,6 +28,7 @@ ERRORS = "surrogateescape"
 #: Cell texts (case-insensitive, after stripping blanks and quotes) that mean "missing".
 # A UTF-8 byte order mark (Excel's and Notepad's "UTF-8" saves) as Latin-1 decodes it.
 LATIN1_BOM = "\xef\xbb\xbf"
+BOM = "\ufeff"
 MISSING_TOKENS = frozenset({"", "nan", "-nan", "+nan", "na", "n/a"})
 
 _LINE = re.compile(r"[^\r\n]*(?:\r\n|\r|\n)|[^\r\n]+$")
@@ -136,12 +137,13 @@ def split_cells(body: str, delimiter: str) -> list[str]:
 
 
 def cell_text(raw: str) -> str:
-    """The value of a raw cell: blanks around it and enclosing quotes removed.
+    """The value of a raw cell: blanks around it, a byte order mark before it (the first
+    cell of a file saved as Excel's "CSV UTF-8") and enclosing quotes removed.
 
     Bytes that were not UTF-8 (kept as surrogates so a patch writes them back) are
     decoded as Latin-1 here, so labels and units are printable strings.
     """
-    text = raw.strip()
+    text = raw.strip().lstrip(BOM).strip()
     if len(text) >= 2 and text[0] == '"' and text[-1] == '"':
         text = text[1:-1].replace('""', '"').strip()
     if not text.isascii():
@@ -555,7 +557,8 @@ def column_styles(source: TextSource, cells_needed: set[int]) -> dict[int, Numbe
         for c in needed:
             if c >= n_cells:
                 continue
-            text = cell_text(cells[c]) if '"' in cells[c] else cells[c].strip()
+            text = (cell_text(cells[c]) if '"' in cells[c] or BOM in cells[c]
+                    else cells[c].strip())
             if text.lower() in MISSING_TOKENS:
                 continue
             places, in_exponent = _decimals(text)
@@ -646,7 +649,7 @@ def missing_token(source: TextSource) -> str:
                             source.delimiter)
         for c in marker_cells:
             if c < len(cells):
-                text = cells[c].strip()
+                text = cells[c].strip().lstrip(BOM)
                 if text.lower() in MISSING_TOKENS:
                     return text
     return ""
@@ -663,9 +666,11 @@ def _holds_value(cells: list[str], index: int) -> bool:
 
 
 def _set_cell(cells: list[str], index: int, text: str) -> None:
-    """Replace a cell's text, keeping its quotes; pad a short row with empty cells."""
+    """Replace a cell's text, keeping its quotes and a byte order mark before it (the
+    first cell of a headerless file); pad a short row with empty cells."""
     if index >= len(cells):
         cells.extend([""] * (index + 1 - len(cells)))
-    if cells[index].strip().startswith('"'):
+    mark = BOM if cells[index].startswith(BOM) else ""
+    if cells[index].lstrip(BOM).strip().startswith('"'):
         text = f'"{text}"'
-    cells[index] = text
+    cells[index] = mark + text

@@ -524,6 +524,30 @@ def test_headerless_patch_changes_only_filled_cells(tmp_path):
     assert out.read_text() == "1.0,2.0,3.0\n1.5,2.5,3.5\n2.0,3.0,4.0\n"
 
 
+def test_headerless_file_with_a_byte_order_mark_reads_and_keeps_it(tmp_path):
+    # Excel's "CSV UTF-8" save puts a BOM before the first number of a headerless file.
+    path = tmp_path / "bom.csv"
+    path.write_bytes(b"\xef\xbb\xbf1,1.0,2.0,3.0\n2,NaN,NaN,NaN\n3,2.0,3.0,4.0\n")
+    original = csvfmt.read(path)
+    assert (original.labels, original.first_frame) == (("M001",), 1)
+    assert original.observed.tolist() == [[True], [False], [True]]
+    out = tmp_path / "out.csv"
+    csvfmt.write(fill_by_interp(original), out)
+    assert out.read_bytes() == path.read_bytes().replace(b"NaN,NaN,NaN", b"1.5,2.5,3.5")
+
+
+def test_headerless_patch_of_a_first_cell_after_a_byte_order_mark_keeps_the_mark(tmp_path):
+    path = tmp_path / "bom.csv"
+    path.write_bytes(b"\xef\xbb\xbfNaN,2.0,3.0\n1.0,2.0,3.0\n2.0,3.0,4.0\n")
+    original = csvfmt.read(path)
+    assert original.observed.tolist() == [[False], [True], [True]]
+    repaired = original.with_positions(np.nan_to_num(original.positions, nan=0.5),
+                                       np.ones_like(original.observed))
+    out = tmp_path / "out.csv"
+    csvfmt.write(repaired, out)
+    assert out.read_bytes() == b"\xef\xbb\xbf0.5,2.0,3.0\n1.0,2.0,3.0\n2.0,3.0,4.0\n"
+
+
 def test_patch_of_whole_number_columns_rounds_to_whole_numbers(tmp_path):
     original = csvfmt.read(write_text(tmp_path, "1,2,3\nNaN,NaN,NaN\n3,4,5\n"))
     out = tmp_path / "out.csv"
