@@ -479,6 +479,27 @@ def first_frame_from(frames: np.ndarray, default: int = 1) -> int:
     return default
 
 
+def frame_steps_notes(frames: np.ndarray, row_lines: np.ndarray, name: str,
+                      first_frame: int) -> tuple[str, ...]:
+    """A note when a frame-number column does not count up by one per row.
+
+    Readers take rows as consecutive frames (as OpenSim and BTK read a TRC), so the frame
+    numbers of reports and outputs count rows from ``first_frame``; where the file's own
+    numbers skip (rows deleted) or repeat, they differ from those, and the note says so.
+    Empty cells (NaN) are passed over.
+    """
+    seen = np.flatnonzero(np.isfinite(frames))
+    values = frames[seen]
+    wrong = np.flatnonzero(np.diff(values) != np.diff(seen))
+    if wrong.size == 0:
+        return ()
+    k = int(wrong[0])
+    more = f", and {wrong.size - 1} more place(s)" if wrong.size > 1 else ""
+    return (f"the {name} column is not consecutive ({format_float(values[k])} then "
+            f"{format_float(values[k + 1])} at line {int(row_lines[seen[k + 1]]) + 1}{more}); "
+            f"rows are read as consecutive frames numbered from {first_frame}",)
+
+
 def format_float(value: float) -> str:
     """Shortest text that reads back as exactly ``value`` (``1.0`` written ``1``)."""
     text = repr(float(value))

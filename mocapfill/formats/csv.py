@@ -84,6 +84,7 @@ from ._text import (
     format_float,
     frame_rate,
     frame_rows,
+    frame_steps_notes,
     is_blank,
     parse_column,
     parse_markers,
@@ -264,7 +265,10 @@ def _read_plain(path: Path, lines: list[str], start: int, delimiter: str,
                            cut) if frame_col >= 0 else np.array([]))
     times = (parse_column(path, lines, row_lines, time_col, delimiter, headers[time_col],
                           cut) if time_col >= 0 else np.array([]))
-    notes = ((f"ignored columns: {', '.join(ignored)}",) if ignored else ()) + _cut_note(cut)
+    first_frame = first_frame_from(frames)
+    notes = (((f"ignored columns: {', '.join(ignored)}",) if ignored else ()) + _cut_note(cut)
+             + (frame_steps_notes(frames, row_lines, headers[frame_col], first_frame)
+                if frame_col >= 0 else ()))
     w_columns = (np.array([w_cols.get(n, -1) for n in labels], dtype=int) if ktk else None)
     source = TextSource("ktk" if ktk else "csv", tuple(lines), delimiter, row_lines,
                         columns, observed, labels, w_columns=w_columns, notes=notes,
@@ -272,7 +276,7 @@ def _read_plain(path: Path, lines: list[str], start: int, delimiter: str,
     return Motion(positions, observed, labels,
                   _rate(path, comments, rate_from_times(times), rate),
                   comments.get("units") or units or ("m" if ktk else DEFAULT_UNITS),
-                  source=source, path=path, first_frame=first_frame_from(frames))
+                  source=source, path=path, first_frame=first_frame)
 
 
 def _read_vicon(path: Path, lines: list[str], delimiter: str, rate: float | None,
@@ -325,12 +329,14 @@ def _read_vicon(path: Path, lines: list[str], delimiter: str, rate: float | None
     stated = head[1][0] if head[1] else ""
     file_rate = frame_rate(path, stated, "Trajectories rate") if stated else None
     others = [name for key, (_, name) in sections.items() if key != "trajectories"]
-    notes = ((f"sections not read: {', '.join(others)}",) if others else ()) + _cut_note(cut)
+    first_frame = first_frame_from(frames)
+    notes = (((f"sections not read: {', '.join(others)}",) if others else ()) + _cut_note(cut)
+             + frame_steps_notes(frames, row_lines, "Frame", first_frame))
     source = TextSource("vicon", tuple(lines), delimiter, row_lines, columns, observed,
                         labels, notes=notes, cut_row=cut, width=width.cells)
     return Motion(positions, observed, labels, file_rate or rate or DEFAULT_RATE,
                   unit_set.pop() if unit_set else (units or DEFAULT_UNITS),
-                  source=source, path=path, first_frame=first_frame_from(frames))
+                  source=source, path=path, first_frame=first_frame)
 
 
 def _read_headerless(path: Path, lines: list[str], start: int, delimiter: str,
@@ -367,13 +373,14 @@ def _read_headerless(path: Path, lines: list[str], start: int, delimiter: str,
     elif lead == 1:
         whole = np.all(np.mod(leading[0], 1) == 0)
         frames, times = (leading[0], times) if whole else (frames, leading[0])
+    first_frame = first_frame_from(frames)
+    notes = _cut_note(cut) + frame_steps_notes(frames, row_lines, "Frame", first_frame)
     source = TextSource("headerless", tuple(lines), delimiter, row_lines, columns,
-                        observed, labels, notes=_cut_note(cut), cut_row=cut,
-                        width=width.cells)
+                        observed, labels, notes=notes, cut_row=cut, width=width.cells)
     return Motion(positions, observed, labels,
                   _rate(path, comments, rate_from_times(times), rate),
                   comments.get("units") or units or DEFAULT_UNITS,
-                  source=source, path=path, first_frame=first_frame_from(frames))
+                  source=source, path=path, first_frame=first_frame)
 
 
 # ----------------------------------------------------------------------------- helpers

@@ -86,6 +86,7 @@ from ._text import (
     format_float,
     frame_rate,
     frame_rows,
+    frame_steps_notes,
     parse_column,
     parse_markers,
     patched_lines,
@@ -189,17 +190,18 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
                    cut >= 0, last_short)
     truncated = (len(row_lines) if declared_frames is not None
                  and len(row_lines) < declared_frames else None)
+    stated = header.get("DataRate")
+    file_rate = frame_rate(path, stated, "DataRate") if stated else rate_from_times(times)
+    start_frame = _int(header.get("OrigDataStartFrame"))
+    first_frame = first_frame_from(frames, 1 if start_frame is None else start_frame)
+    notes += frame_steps_notes(frames, row_lines, "Frame#", first_frame)
     source = TextSource("trc", tuple(lines), delimiter, row_lines, columns, observed,
                         labels, declared_frames=declared_frames,
                         truncated_rows_read=truncated, notes=tuple(notes), cut_row=cut,
                         width=width.cells)
-    stated = header.get("DataRate")
-    file_rate = frame_rate(path, stated, "DataRate") if stated else rate_from_times(times)
-    start_frame = _int(header.get("OrigDataStartFrame"))
     return Motion(positions, observed, labels, file_rate or rate or DEFAULT_RATE,
                   header.get("Units") or units or DEFAULT_UNITS, source=source, path=path,
-                  first_frame=first_frame_from(frames, 1 if start_frame is None
-                                               else start_frame))
+                  first_frame=first_frame)
 
 
 def write(motion: Motion, path: Path, *, decimals: int | None = None,

@@ -511,6 +511,19 @@ def test_headerless_leading_frame_and_time_columns(tmp_path):
     assert (motion.first_frame, motion.rate) == (1, pytest.approx(200))
 
 
+@pytest.mark.parametrize("text", [
+    "Frame,Time,A_X,A_Y,A_Z\n1,0,1,2,3\n2,0.01,1,2,3\n5,0.04,1,2,3\n",
+    "1,1,2,3\n2,1,2,3\n5,1,2,3\n",
+    "Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n"
+    "1,0,1,2,3\n2,0,1,2,3\n5,0,1,2,3\n",
+], ids=["plain", "headerless", "vicon"])
+def test_frame_numbers_that_skip_are_noted(tmp_path, text):
+    motion = csvfmt.read(write_text(tmp_path, text))
+    assert motion.n_frames == 3
+    assert any(note.startswith("the Frame column is not consecutive (2 then 5 at line ")
+               for note in motion.source.notes)
+
+
 def test_headerless_extra_column_that_is_not_a_counter_is_a_format_error(tmp_path):
     with pytest.raises(FormatError, match="not a multiple of 3"):
         csvfmt.read(write_text(tmp_path, "5,1,2,3\n4,1,2,3\n"))

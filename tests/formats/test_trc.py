@@ -75,6 +75,22 @@ def test_first_frame_comes_from_the_first_frame_number(tmp_path):
     assert trc.read(write_text(tmp_path, trc_text(rows), "a.trc")).first_frame == 40
 
 
+def test_frame_numbers_that_skip_are_noted(tmp_path):
+    # Rows are frames one after the other (as OpenSim and BTK read them), so a gap report
+    # would name frame 3 where the file says 7: the reader says so rather than stay silent.
+    rows = [ROWS[0], ROWS[1], ROWS[2].replace("3\t", "7\t", 1)]
+    motion = trc.read(write_text(tmp_path, trc_text(rows), "a.trc"))
+    assert motion.n_frames == 3
+    assert motion.source.notes == (
+        "the Frame# column is not consecutive (2 then 7 at line 9); rows are read as "
+        "consecutive frames numbered from 1",)
+
+
+def test_consecutive_frame_numbers_are_not_noted(tmp_path):
+    rows = [row.replace(f"{k + 1}\t", f"{k + 40}\t", 1) for k, row in enumerate(ROWS)]
+    assert trc.read(write_text(tmp_path, trc_text(rows), "a.trc")).source.notes == ()
+
+
 def test_marker_names_are_stripped_of_surrounding_blanks(tmp_path):
     text = trc_text(ROWS, names=" LASI \t\t\tR ASI \t\t\t")
     assert trc.read(write_text(tmp_path, text, "a.trc")).labels == ("LASI", "R ASI")
