@@ -32,8 +32,10 @@ case), ``NA`` or ``N/A``.
 Rows: every data row holds as many cells as the header row (the axis row in a Vicon
 export, the first row in a headerless file); a row with fewer cells, or with values
 beyond them, is a FormatError naming its line. Empty cells beyond them are accepted (a
-trailing delimiter, spreadsheet padding). A file that does not end with a line ending
-is read whole (many tools end a file so) unless its last row shows that the file was cut
+trailing delimiter, spreadsheet padding), and lines of only empty cells after the last
+row (``,,,,``, as a spreadsheet saves rows it once formatted) are not frames. A file
+that does not end with a line ending is read whole (many tools end a file so) unless its
+last row shows that the file was cut
 short inside it (``_text.find_cut_row``): it holds fewer cells than a complete row, or
 its last cell is not a number or is printed less precisely than the cells around it
 (``956.933`` cut to ``956``). Then the last cell of that row is not read, the row may be
@@ -250,7 +252,7 @@ def _read_plain(path: Path, lines: list[str], start: int, delimiter: str,
             raise FormatError(path, f"marker {name!r} has columns {have} but no {lack}")
     labels = tuple(markers)
     columns = np.array([[markers[n][a] for a in range(3)] for n in labels], dtype=int)
-    row_lines = _data_rows(lines, start + 1)
+    row_lines = _data_rows(lines, start + 1, delimiter)
     if row_lines.size == 0:
         raise FormatError(path, "no data rows after the header")
 
@@ -310,7 +312,7 @@ def _read_vicon(path: Path, lines: list[str], delimiter: str, rate: float | None
         raise FormatError(path, "Vicon Trajectories section has no X, Y, Z marker columns")
     labels = tuple(complete)
     columns = np.array([[complete[n][a] for a in range(3)] for n in labels], dtype=int)
-    row_lines = _data_rows(lines, top + 5, section_delimiter=delimiter)
+    row_lines = _data_rows(lines, top + 5, delimiter, sectioned=True)
     if row_lines.size == 0:
         raise FormatError(path, "Vicon Trajectories section has no data rows")
 
@@ -342,7 +344,7 @@ def _read_vicon(path: Path, lines: list[str], delimiter: str, rate: float | None
 def _read_headerless(path: Path, lines: list[str], start: int, delimiter: str,
                      comments: dict[str, str], rate: float | None,
                      units: str | None) -> Motion:
-    row_lines = _data_rows(lines, start)
+    row_lines = _data_rows(lines, start, delimiter)
     n_cols = len(split_cells(_body(lines, start), delimiter))
     lead = n_cols % 3
     n_markers = n_cols // 3
@@ -435,17 +437,21 @@ def _add_axis(path: Path, markers: dict[str, dict[int, int]], name: str, axis: i
     axes[axis] = column
 
 
-def _data_rows(lines: Sequence[str], start: int, section_delimiter: str | None = None
+def _data_rows(lines: Sequence[str], start: int, delimiter: str, *, sectioned: bool = False
                ) -> np.ndarray:
-    """Indices of the data rows from ``start``: blank and ``#`` lines are skipped.
+    """Indices of the data rows from ``start``: blank and ``#`` lines are skipped, and so
+    are the lines of only empty cells after the last row (``,,,,``: rows a spreadsheet
+    once formatted, not frames; between rows such a line is a frame with every sample
+    missing).
 
-    With ``section_delimiter`` (a sectioned Vicon file) a line with no text, or only
-    empty cells, ends the section.
+    With ``sectioned`` (a sectioned Vicon file) a line with no text, or only empty cells,
+    ends the section.
     """
     rows = []
     for i in range(start, len(lines)):
         body = split_ending(lines[i])[0]
-        if section_delimiter is not None and not body.replace(section_delimiter, "").strip():
+        empty = not body.replace(delimiter, "").strip()
+        if sectioned and empty:
             if rows:
                 break
             continue
@@ -453,8 +459,10 @@ def _data_rows(lines: Sequence[str], start: int, section_delimiter: str | None =
             continue
         if body.lstrip().startswith("#"):
             continue
-        rows.append(i)
-    return np.array(rows, dtype=int)
+        rows.append((i, empty))
+    while rows and rows[-1][1]:
+        rows.pop()
+    return np.array([i for i, _ in rows], dtype=int)
 
 
 # What ``formats.for_output`` says of the names a new file gets, in its note on them.

@@ -524,6 +524,27 @@ def test_frame_numbers_that_skip_are_noted(tmp_path, text):
                for note in motion.source.notes)
 
 
+@pytest.mark.parametrize("text", [
+    "Frame,Time,A_X,A_Y,A_Z\n1,0,1,2,3\n2,0.01,,,\n3,0.02,1,2,3\n",
+    "1,2,3\nNaN,NaN,NaN\n1,2,3\n",
+], ids=["plain", "headerless"])
+def test_rows_of_empty_cells_after_the_data_are_not_frames(tmp_path, text):
+    # A spreadsheet saves rows it once formatted as ",,,,": padding, not frames whose
+    # every sample is missing (the TRC and Vicon readers pass them over too).
+    path = write_text(tmp_path, text + ",,,,\r\n, ,\n,,,,")
+    motion = csvfmt.read(path)
+    assert motion.n_frames == 3
+    assert motion.observed[:, 0].tolist() == [True, False, True]
+    out = tmp_path / "out.csv"
+    csvfmt.write(fill_by_interp(motion), out)
+    assert out.read_bytes().endswith(b",,,,\r\n, ,\n,,,,")
+
+
+def test_a_row_of_empty_cells_between_frames_is_a_frame(tmp_path):
+    motion = csvfmt.read(write_text(tmp_path, "1,2,3\n,,\n1,2,3\n"))
+    assert motion.observed[:, 0].tolist() == [True, False, True]
+
+
 def test_headerless_extra_column_that_is_not_a_counter_is_a_format_error(tmp_path):
     with pytest.raises(FormatError, match="not a multiple of 3"):
         csvfmt.read(write_text(tmp_path, "5,1,2,3\n4,1,2,3\n"))
