@@ -126,7 +126,9 @@ def pchip(x: np.ndarray, y: np.ndarray) -> Interpolant:
     w1 = (2.0 * h[1:] + h[:-1])[:, None]
     w2 = (h[1:] + 2.0 * h[:-1])[:, None]
     flat = (np.sign(m[1:]) != np.sign(m[:-1])) | (m[1:] == 0) | (m[:-1] == 0)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    # A slope of 0 (flat) or a subnormal one (w / m overflows to ±inf: the harmonic mean
+    # is then 0, as for a flat side) needs no warning.
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         harmonic = (w1 / m[:-1] + w2 / m[1:]) / (w1 + w2)
         slopes[1:-1] = np.where(flat, 0.0, 1.0 / harmonic)
     slopes[0] = _pchip_end_slope(h[0], h[1], m[0], m[1])

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -47,6 +48,19 @@ def test_pchip_is_scipys(columns):
         _close(_splines.pchip(x, y)(t), PchipInterpolator(x, y)(t))
     x, y, t = _samples(0, n=2, columns=columns)
     _close(_splines.pchip(x, y)(t), PchipInterpolator(x, y)(t))
+
+
+def test_pchip_on_subnormal_steps_is_flat_there_without_a_warning():
+    # w / m overflows where a step is subnormal (a property test's data): the harmonic
+    # mean of the slopes is then 0, as beside a flat step, and nothing is worth a warning.
+    x = np.arange(4.0)
+    y = np.array([0.0, 1e-310, 3e-310, 1.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ours = _splines.pchip(x, y)(np.array([0.5, 1.5, 2.5]))
+    with np.errstate(over="ignore"):            # scipy's own division warns
+        theirs = PchipInterpolator(x, y)(np.array([0.5, 1.5, 2.5]))
+    _close(ours, theirs)
 
 
 @pytest.mark.parametrize("columns", [None, 3])
