@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from .errors import named
+
 
 def finite_samples(positions: np.ndarray) -> np.ndarray:
     """(frames, markers) True where all three coordinates of a sample are finite.
@@ -177,6 +179,14 @@ def label_matches(label: str, patterns: Sequence[str]) -> bool:
     bare = label.rsplit(":", 1)[-1]
     return any(fnmatch.fnmatchcase(label, p) or fnmatch.fnmatchcase(bare, p)
                for p in patterns)
+
+
+def matches_nothing(motion: Motion, option: str, patterns: Sequence[str]) -> str:
+    """The error for ``--markers`` or ``--exclude`` patterns that select no marker of the
+    clip, naming its file (repair, plot)."""
+    shown = ", ".join(motion.labels[:8]) + (", ..." if motion.n_markers > 8 else "")
+    return (f"{named(motion.path)}{option} {' '.join(patterns)} matches no marker "
+            f"(the clip has {shown})")
 
 
 def unique_labels(names: Sequence[str]) -> list[str]:

@@ -20,7 +20,7 @@ from ._blas import single_threaded
 from ._memory import release_memory
 from .errors import NothingToRepair, ParameterError, SolverError, named
 from .gaps import Gap, find_gaps, gap_frames, missing_runs
-from .motion import Motion, finite_samples, label_matches
+from .motion import Motion, finite_samples, label_matches, matches_nothing
 from .scaling import UnitScale
 from .solvers import get_method, option_names
 from .solvers._threads import in_order, thread_count
@@ -642,14 +642,6 @@ def _jumping(positions: np.ndarray, motion: Motion, gaps: list[Gap],
             for gap, jump_moving, jump_still in zip(gaps, moving, still)]
 
 
-def _matches_nothing(motion: Motion, option: str, patterns: list[str] | tuple[str, ...]
-                     ) -> str:
-    """The error for --markers or --exclude patterns that select no marker of the clip."""
-    shown = ", ".join(motion.labels[:8]) + (", ..." if motion.n_markers > 8 else "")
-    return (f"{named(motion.path)}{option} {' '.join(patterns)} matches no marker "
-            f"(the clip has {shown})")
-
-
 @single_threaded()
 def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult:
     """Fill the gaps of a clip (BLAS on one thread meanwhile, see :mod:`mocapfill._blas`).
@@ -674,13 +666,13 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     if options.markers and not any(label_matches(label, options.markers)
                                    for label in motion.labels):
         # A typo would otherwise end in "0 gaps filled, N left (N not selected)".
-        raise ParameterError(_matches_nothing(motion, "--markers", options.markers))
+        raise ParameterError(matches_nothing(motion, "--markers", options.markers))
     if options.exclude and not any(label_matches(label, options.exclude)
                                    for label in motion.labels):
         # A typo (--exclude LKNEE for LKNE) would fill the marker meant to stay open. The
         # patterns together, as for --markers: a batch of several subjects may exclude
         # 'Male:*' and 'Female:*', each file matching one of them.
-        raise ParameterError(_matches_nothing(motion, "--exclude", options.exclude))
+        raise ParameterError(matches_nothing(motion, "--exclude", options.exclude))
     if options.space == "channels":
         return repair_channels(motion, options)
     started = time.perf_counter()

@@ -14,7 +14,7 @@ import numpy as np
 from .errors import FormatError, MocapfillError, ParameterError, named
 from .formats import atomic_output, check_output_folder, write_text_atomically
 from .gaps import missing_runs
-from .motion import Motion, label_matches
+from .motion import Motion, label_matches, matches_nothing
 
 SUFFIXES = (".png", ".svg", ".html")
 MAX_DEFAULT_MARKERS = 8
@@ -28,7 +28,7 @@ def _pick_markers(motion: Motion, patterns: tuple[str, ...]) -> list[int]:
         chosen = [j for j, label in enumerate(motion.labels)
                   if label_matches(label, patterns)]
         if not chosen:
-            raise ParameterError(f"no marker matches {', '.join(patterns)}")
+            raise ParameterError(matches_nothing(motion, "--markers", patterns))
         return chosen
     gapped = np.flatnonzero((~motion.observed).any(axis=0) & motion.fillable)
     if gapped.size == 0:
@@ -69,6 +69,7 @@ def plot(original: Motion, repaired: Motion | None, path: Path,
     if repaired is not None and repaired.positions.shape != original.positions.shape:
         # As score and info do: a file that does not match (exit 123), named.
         raise FormatError(repaired.path, "does not match the original in frames × markers")
+    chosen = _pick_markers(original, markers)
     try:
         import matplotlib
     except ImportError:
@@ -76,7 +77,6 @@ def plot(original: Motion, repaired: Motion | None, path: Path,
     matplotlib.use("Agg")
     from matplotlib import pyplot as plt
 
-    chosen = _pick_markers(original, markers)
     time = (original.first_frame - 1 + np.arange(original.n_frames)) / original.rate
     fig, axes = plt.subplots(len(chosen), 3, figsize=(13, 2.1 * len(chosen) + 0.8),
                              sharex=True, squeeze=False)

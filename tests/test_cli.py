@@ -169,6 +169,9 @@ def test_check_exits_1_when_gaps_are_left(clip_files):
     (["plot", "gapped.npz", "-o", "nodir/p.png"], 2,
      "nodir/p.png: output folder nodir does not exist"),
     (["plot", "gapped.npz", "-o", "folder.png"], 2, "folder.png: is a folder"),
+    # As repair says it: the file named (it was "no marker matches NOPE" alone).
+    (["plot", "gapped.npz", "-o", "p.png", "--markers", "NOPE"], 2,
+     "gapped.npz: --markers NOPE matches no marker (the clip has MK00, MK01"),
     (["repair", "gapped.npz", "o.npz", "--method", "bogus"], 2,
      "Invalid value for '--method'"),
     (["repair", "gapped.npz", "o.npz", "--gaps-report", "nodir/g.csv"], 2,
