@@ -105,8 +105,12 @@ def main() -> None:
 
 
 def _refuse_folder_name(value, param=None, ctx=None, param_hint=None) -> None:
-    """A file to write named with a trailing '/' is a usage error (exit 2): pathlib drops
-    the slash, so ``-o plots/`` used to write a file called ``plots``."""
+    """A file to write named with a trailing '/', or not named at all (``''``), is a usage
+    error (exit 2): pathlib drops the slash, so ``-o plots/`` used to write a file called
+    ``plots``, and reads ``''`` as ``.``, which was reported as "unknown file type"."""
+    if value == "":
+        raise click.BadParameter("the path is empty: name a file to write", ctx=ctx,
+                                 param=param, param_hint=param_hint)
     if isinstance(value, str) and value.endswith(("/", os.sep)):
         raise click.BadParameter(f"{value!r} ends with '{value[-1]}': name a file to write, "
                                  "not a folder", ctx=ctx, param=param, param_hint=param_hint)
@@ -120,6 +124,18 @@ class _OutputFile(click.Path):
 
     def convert(self, value, param, ctx):
         _refuse_folder_name(value, param, ctx)
+        return super().convert(value, param, ctx)
+
+
+class _OutputFolder(click.Path):
+    """A folder the command writes into; an empty name (pathlib's ``.``) is refused."""
+
+    def __init__(self) -> None:
+        super().__init__(path_type=Path, file_okay=False)
+
+    def convert(self, value, param, ctx):
+        if value == "":
+            self.fail("the path is empty: name a folder to write into", param, ctx)
         return super().convert(value, param, ctx)
 
 
@@ -177,7 +193,7 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
 
 @main.command()
 @click.argument("paths", nargs=-1, required=True, metavar="IN... [OUT]", type=click.Path())
-@click.option("-o", "--out-dir", type=click.Path(path_type=Path, file_okay=False), default=None,
+@click.option("-o", "--out-dir", type=_OutputFolder(), default=None,
               help="Batch: repair every IN (files, folders walked recursively for known "
                    "suffixes, quoted globs) into this folder, mirroring the input tree. "
                    "Outputs newer than their input are skipped, so a rerun resumes.")
@@ -290,6 +306,11 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
     from . import formats
     from .pipeline import repair as run_repair
 
+    if in_path.is_dir():
+        from .errors import FormatError
+
+        raise FormatError(in_path, "is a folder; to repair the files in it give -o OUTDIR "
+                          "(or --in-place): mocapfill repair FOLDER -o OUTDIR", exit_code=2)
     formats.check_output(out_path, in_path)
     if gaps_report is not None:
         _check_gaps_report(gaps_report, in_path, out_path)

@@ -169,6 +169,16 @@ def test_check_exits_1_when_gaps_are_left(clip_files):
     (["plot", "gapped.npz", "-o", "nodir/p.png"], 2,
      "nodir/p.png: output folder nodir does not exist"),
     (["plot", "gapped.npz", "-o", "folder.png"], 2, "folder.png: is a folder"),
+    # These said "unknown file type '(no suffix)'", the empty OUT naming itself ".".
+    (["repair", "trials", "o.npz"], 2,
+     "trials: is a folder; to repair the files in it give -o OUTDIR (or --in-place)"),
+    (["info", "trials"], 2, "trials: is a folder, not a file"),
+    (["convert", "trials", "o.npz"], 2, "trials: is a folder, not a file"),
+    (["repair", "gapped.npz", ""], 2, "'OUT': the path is empty: name a file to write"),
+    (["convert", "gapped.npz", ""], 2, "'OUT': the path is empty: name a file to write"),
+    (["plot", "gapped.npz", "-o", ""], 2, "the path is empty: name a file to write"),
+    (["repair", "gapped.npz", "o.npz", "--gaps-report", ""], 2, "the path is empty"),
+    (["repair", "gapped.npz", "-o", ""], 2, "the path is empty: name a folder"),
     # As repair says it: the file named (it was "no marker matches NOPE" alone).
     (["plot", "gapped.npz", "-o", "p.png", "--markers", "NOPE"], 2,
      "gapped.npz: --markers NOPE matches no marker (the clip has MK00, MK01"),
@@ -202,6 +212,7 @@ def test_bad_input_gives_one_line_error_and_exit_code(clip_files, monkeypatch, a
     formats.write(smooth_clip(1, 3), clip_files / "one.npz")
     (clip_files / "folder.csv").mkdir()
     (clip_files / "folder.png").mkdir()
+    (clip_files / "trials").mkdir()
     formats.write(with_gap(smooth_clip(100, 3), 1, 40, 45).replace(rate=0.0),
                   clip_files / "norate.npz")
     formats.write(Motion(np.zeros((5, 0, 3)), np.zeros((5, 0), bool), (), 100.0),

@@ -99,11 +99,11 @@ def format_module(path: str | os.PathLike, *, output: bool = False) -> ModuleTyp
 def read(path: str | os.PathLike, **options) -> Motion:
     """Read a motion file of any known format."""
     path = Path(path)
+    if path.is_dir():   # before its suffix: a folder has none, or not a format's
+        raise FormatError(path, "is a folder, not a file", exit_code=2)
     module = format_module(path)
     if not path.exists():
         raise FormatError(path, "no such file", exit_code=2)
-    if path.is_dir():
-        raise FormatError(path, "is a directory, not a file", exit_code=2)
     try:
         return module.read(path, **options)
     except (FormatError, ParameterError):
