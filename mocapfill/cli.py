@@ -357,7 +357,8 @@ def _refuse_batch_options(paths, **batch_only) -> None:
 
     given = [f"--{name}" for name, value in batch_only.items() if value not in (None, False)]
     if given:
-        raise ParameterError(f"{', '.join(given)} apply to batches: add -o OUTDIR or "
+        verb = "applies" if len(given) == 1 else "apply"
+        raise ParameterError(f"{', '.join(given)} {verb} to batches: add -o OUTDIR or "
                              "--in-place")
     if len(paths) != 2:
         raise ParameterError(f"got {len(paths)} path(s): give IN OUT for one file, or "

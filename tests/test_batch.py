@@ -335,7 +335,9 @@ def test_globs_mirror_the_tree_under_their_fixed_folder(clean_tree, tmp_path):
 
 
 @pytest.mark.parametrize("args, words", [
-    (["a.npz", "b.npz", "--jobs", "2"], "--jobs apply to batches"),
+    (["a.npz", "b.npz", "--jobs", "2"], "--jobs applies to batches"),
+    (["a.npz", "b.npz", "--force"], "--force applies to batches"),
+    (["a.npz", "b.npz", "--force", "--jobs", "2"], "--force, --jobs apply to batches"),
     (["a.npz", "b.npz", "c.npz"], "got 3 path(s)"),
     (["missing_folder", "-o", "out"], "no such file or folder"),
     (["x.npz", "-o", "out", "--in-place"], "not both"),
