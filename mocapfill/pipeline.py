@@ -60,7 +60,8 @@ class RepairOptions:
     solver_options
         Keyword arguments for the method (rank, lam, mu, rho, eta0, tol, max_iter, ...).
     max_gap_frames
-        Gaps longer than this are left missing; None fills every length.
+        Gaps longer than this many frames (a whole number ≥ 0) are left missing; None
+        fills every length.
     ends
         Gaps touching the first or last frame: "leave" them missing (default), "hold" the
         nearest observed value, or "extrapolate" with the method's fill clamped to the
@@ -99,8 +100,17 @@ class RepairOptions:
                 object.__setattr__(self, name, (getattr(self, name),))
         if self.ends not in ENDS:
             raise ParameterError(f"ends must be one of {', '.join(ENDS)}, got {self.ends!r}")
-        if self.max_gap_frames is not None and self.max_gap_frames < 0:
-            raise ParameterError(f"max gap must be ≥ 0 frames, got {self.max_gap_frames}")
+        if self.max_gap_frames is not None:
+            # A count, as --rank and --max-iter are: 2.5 acted as 2 (a gap's length in
+            # frames is whole), nan and inf as no limit, a string as a TypeError.
+            gap_frames = self.max_gap_frames
+            if (isinstance(gap_frames, bool) or not isinstance(gap_frames, Real)
+                    or not float(gap_frames).is_integer()):
+                raise ParameterError(f"max gap must be a whole number of frames, got "
+                                     f"{gap_frames!r}")
+            if gap_frames < 0:
+                raise ParameterError(f"max gap must be ≥ 0 frames, got {gap_frames}")
+            object.__setattr__(self, "max_gap_frames", int(gap_frames))
         if self.max_jump_mm is not None and not self.max_jump_mm >= 0:
             raise ParameterError(f"max jump must be ≥ 0 mm, got {self.max_jump_mm}")
         if self.space not in SPACES:

@@ -153,6 +153,18 @@ def test_solver_options_out_of_range_are_rejected_from_python_too(solver_options
         RepairOptions(method="trnn-lowrank", solver_options=solver_options)
 
 
+@pytest.mark.parametrize("max_gap_frames", [2.5, float("nan"), float("inf"), "40", True])
+def test_a_max_gap_that_is_not_a_whole_number_of_frames_is_rejected(max_gap_frames):
+    # 2.5 acted as 2 (gap lengths are whole), nan and inf as no limit.
+    with pytest.raises(ParameterError, match="max gap must be a whole number of frames"):
+        RepairOptions(max_gap_frames=max_gap_frames)
+
+
+def test_a_whole_max_gap_given_as_a_float_is_kept_as_frames():
+    assert RepairOptions(max_gap_frames=40.0).max_gap_frames == 40
+    assert type(RepairOptions(max_gap_frames=np.int64(40)).max_gap_frames) is int
+
+
 def teleport(matrix, observed, **_):
     """A broken method: fills every missing entry 1000 units away."""
     return np.where(observed, matrix, 1000.0)
