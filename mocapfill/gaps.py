@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import NothingToRepair, ParameterError, named
-from .motion import Motion
+from .motion import Motion, require_motion
 
 
 @dataclass(frozen=True)
@@ -111,6 +111,7 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
     Only fillable markers with at least one observed sample are candidates, and a
     marker never loses its last observed sample.
     """
+    require_motion(motion, "simulate_gaps")
     if (mr is None) == (ml is None):
         raise ParameterError("give exactly one of mr (random missing) or ml (continuous missing)")
     if seed is not None and seed < 0:

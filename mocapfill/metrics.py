@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import MocapfillError
-from .motion import Motion
+from .motion import Motion, require_motion
 
 # Length units as files spell them -> millimetres.
 MM_PER_UNIT = {"mm": 1.0, "millimeter": 1.0, "millimetre": 1.0, "cm": 10.0, "m": 1000.0,
@@ -77,6 +77,9 @@ def score(truth: Motion, repaired: Motion, gapped: Motion | None = None) -> Scor
     a CSV with 3 decimals and from a float32 C3D differs in every sample by rounding alone.
     A sample still missing in ``repaired`` counts as unfilled and is left out of the RMSE.
     """
+    for clip, role in ((truth, "truth"), (repaired, "repaired"), (gapped, "gapped")):
+        if clip is not None or role != "gapped":
+            require_motion(clip, "score", role)
     for other, role in ((repaired, "repaired"), (gapped, "gapped")):
         if other is not None:
             _check_comparable(truth, other, role)

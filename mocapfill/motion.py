@@ -8,6 +8,7 @@ from __future__ import annotations
 import fnmatch
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from os import PathLike
 from pathlib import Path
 from typing import Any
 
@@ -171,6 +172,19 @@ def from_matrix(data: np.ndarray, observed: np.ndarray | None = None, *, rate: f
     positions = data.reshape(n_markers, 3, -1).transpose(2, 0, 1)
     labels = labels or [f"M{j + 1:03d}" for j in range(n_markers)]
     return Motion(positions, observed, tuple(labels), rate, units)
+
+
+def require_motion(value: object, function: str, argument: str = "motion") -> None:
+    """A TypeError unless ``value`` is a Motion: a file name handed to ``repair`` and the
+    other functions taking a clip failed deep inside ("'str' object has no attribute
+    'n_frames'")."""
+    if isinstance(value, Motion):
+        return
+    hint = ""
+    if isinstance(value, (str, PathLike)):
+        hint = f": read the file first, mocapfill.read({str(value)!r}) gives its Motion"
+    raise TypeError(f"{function}() takes a Motion as {argument}, got "
+                    f"{type(value).__name__}{hint}")
 
 
 def label_matches(label: str, patterns: Sequence[str]) -> bool:

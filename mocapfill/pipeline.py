@@ -20,7 +20,7 @@ from ._blas import single_threaded
 from ._memory import release_memory
 from .errors import NothingToRepair, ParameterError, SolverError, named
 from .gaps import Gap, find_gaps, gap_frames, missing_runs
-from .motion import Motion, finite_samples, label_matches, matches_nothing
+from .motion import Motion, finite_samples, label_matches, matches_nothing, require_motion
 from .scaling import UnitScale
 from .solvers import get_method, option_names
 from .solvers._threads import in_order, thread_count
@@ -668,7 +668,17 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     RepairResult
         The repaired Motion (same source handle, so writers can patch the input file) and
         one outcome per gap of the input.
+
+    Raises
+    ------
+    TypeError
+        ``motion`` is not a Motion (a file name: read it first with ``mocapfill.read``),
+        or ``options`` not a RepairOptions.
     """
+    require_motion(motion, "repair")
+    if options is not None and not isinstance(options, RepairOptions):
+        raise TypeError(f"repair() takes a RepairOptions as options, got "
+                        f"{type(options).__name__} (RepairOptions(method=...) sets the method)")
     options = options or RepairOptions()
     if motion.n_frames < 2:     # in either space: nothing to interpolate or fit from
         raise NothingToRepair(f"{named(motion.path)}a clip of {motion.n_frames} frame(s) cannot be "

@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+import mocapfill
 from mocapfill.motion import Motion, from_matrix
 
 from .helpers import smooth_clip
@@ -63,3 +64,20 @@ def test_from_matrix_marks_whole_samples_missing():
 def test_shape_mismatch_is_rejected():
     with pytest.raises(ValueError):
         Motion(np.zeros((3, 2, 3)), np.ones((3, 3), bool), ("A", "B"), 100.0)
+
+
+@pytest.mark.parametrize("call", [
+    lambda clip: mocapfill.simulate_gaps("trial.c3d", mr=0.2),
+    lambda clip: mocapfill.score(clip, "trial.c3d"),
+    lambda clip: mocapfill.write("trial.c3d", "out.c3d"),
+])
+def test_public_functions_given_a_file_name_for_a_motion_say_to_read_it_first(call):
+    with pytest.raises(TypeError, match=r"takes a Motion as \w+, got str: read the file "
+                                        r"first, mocapfill.read\('trial.c3d'\)"):
+        call(smooth_clip(20, 3))
+
+
+def test_write_with_its_arguments_swapped_says_so(tmp_path):
+    with pytest.raises(TypeError, match=r"write\(motion, path\)"):
+        mocapfill.write(tmp_path / "out.npz", smooth_clip(20, 3))
+    assert not any(tmp_path.iterdir())

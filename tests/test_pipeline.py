@@ -1,6 +1,7 @@
 import json
 import os
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -163,6 +164,19 @@ def test_a_max_gap_that_is_not_a_whole_number_of_frames_is_rejected(max_gap_fram
 def test_a_whole_max_gap_given_as_a_float_is_kept_as_frames():
     assert RepairOptions(max_gap_frames=40.0).max_gap_frames == 40
     assert type(RepairOptions(max_gap_frames=np.int64(40)).max_gap_frames) is int
+
+
+@pytest.mark.parametrize("given", ["trial.c3d", Path("trial.c3d")])
+def test_repair_given_a_file_name_says_to_read_it_first(given):
+    # It failed inside: AttributeError: 'str' object has no attribute 'n_frames'.
+    with pytest.raises(TypeError, match=r"repair\(\) takes a Motion as motion, got \w+: read "
+                                        r"the file first, mocapfill.read\('trial.c3d'\)"):
+        repair(given)
+
+
+def test_repair_given_a_method_name_as_options_says_what_it_takes():
+    with pytest.raises(TypeError, match=r"takes a RepairOptions as options, got str"):
+        repair(smooth_clip(50, 3), "linear")
 
 
 def teleport(matrix, observed, **_):

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..errors import FormatError, ParameterError
 from ..metrics import MM_PER_UNIT, mm_per_unit
-from ..motion import Motion
+from ..motion import Motion, require_motion
 
 # Suffix -> module. Plain dict, no global mutable plugin state.
 FORMATS: dict[str, str] = {
@@ -259,6 +259,9 @@ def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = 
         any format an empty output would pass for a result), or the format's writer
         refuses the clip.
     """
+    if isinstance(path, Motion):
+        raise TypeError("write() takes the Motion first, then the path: write(motion, path)")
+    require_motion(motion, "write")
     path = Path(path)
     module = format_module(path, output=True)
     if motion.path is not None and path.exists() and path.resolve() == motion.path.resolve():
