@@ -200,8 +200,10 @@ def _parse_hierarchy(tokens: list[str]) -> _Hierarchy:
 
 
 def _header_value(line: str, key: str) -> str:
+    """The value of a MOTION header line ``Key: value``; the key's words may be separated
+    by any whitespace (``Frame  Time:``, a tab), as the bvh package and others read them."""
     head, _, value = line.partition(":")
-    if head.strip().lower() != key:
+    if " ".join(head.split()).lower() != key:
         raise ValueError(f"expected '{key.title()}:' but found {line.strip()!r}")
     return value.strip()
 

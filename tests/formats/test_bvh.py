@@ -188,6 +188,26 @@ def test_a_frame_time_that_is_not_a_positive_finite_number_is_a_format_error(tmp
                                  "(a positive, finite number of seconds)")
 
 
+@pytest.mark.parametrize("frames, frame_time", [
+    ("Frames:", "Frame  Time:"), ("Frames:", "Frame\tTime:"), ("Frames :", "frame time :"),
+    ("FRAMES:", " Frame \t Time:")])
+def test_header_words_may_be_separated_by_any_whitespace(tmp_path, frames, frame_time):
+    # The bvh package and other readers split on whitespace runs; "Frame  Time:" was a
+    # bad MOTION header here.
+    path = write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0", "1 0 0 0 0 0 0 0 0"])
+    text = path.read_text().replace("Frames:", frames).replace("Frame Time:", frame_time)
+    path.write_text(text)
+    motion = bvh.read(path)
+    assert (motion.n_frames, motion.rate) == (2, 100.0)
+
+
+def test_a_header_word_run_together_is_still_a_bad_header(tmp_path):
+    path = write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0"])
+    path.write_text(path.read_text().replace("Frame Time:", "FrameTime:"))
+    with pytest.raises(FormatError, match="bad MOTION header: expected 'Frame Time:'"):
+        bvh.read(path)
+
+
 def test_a_bvh_of_no_frames_reads_but_is_not_written(tmp_path):
     motion = bvh.read(write_bvh(tmp_path, []))
     assert motion.n_frames == 0
