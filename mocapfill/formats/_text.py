@@ -480,13 +480,16 @@ def first_frame_from(frames: np.ndarray, default: int = 1) -> int:
 
 
 def frame_steps_notes(frames: np.ndarray, row_lines: np.ndarray, name: str,
-                      first_frame: int) -> tuple[str, ...]:
+                      first_frame: int, *, subject: str | None = None,
+                      read_as: str = "rows are read as consecutive frames"
+                      ) -> tuple[str, ...]:
     """A note when a frame-number column does not count up by one per row.
 
     Readers take rows as consecutive frames (as OpenSim and BTK read a TRC), so the frame
     numbers of reports and outputs count rows from ``first_frame``; where the file's own
     numbers skip (rows deleted) or repeat, they differ from those, and the note says so.
-    Empty cells (NaN) are passed over.
+    Empty cells (NaN) are passed over. ``subject`` (default "the NAME column is") and
+    ``read_as`` word the note for a format without columns (an AMC's frame numbers).
     """
     seen = np.flatnonzero(np.isfinite(frames))
     values = frames[seen]
@@ -495,9 +498,11 @@ def frame_steps_notes(frames: np.ndarray, row_lines: np.ndarray, name: str,
         return ()
     k = int(wrong[0])
     more = f", and {wrong.size - 1} more place(s)" if wrong.size > 1 else ""
-    return (f"the {name} column is not consecutive ({format_float(values[k])} then "
-            f"{format_float(values[k + 1])} at line {int(row_lines[seen[k + 1]]) + 1}{more}); "
-            f"rows are read as consecutive frames numbered from {first_frame}",)
+    subject = subject or f"the {name} column is"
+    return (f"{subject} not consecutive "
+            f"({format_float(values[k])} then {format_float(values[k + 1])} at line "
+            f"{int(row_lines[seen[k + 1]]) + 1}{more}); {read_as} numbered from "
+            f"{first_frame}",)
 
 
 def format_float(value: float) -> str:

@@ -78,7 +78,7 @@ from ..skeleton import (
     positions_edited,
 )
 from . import skeleton_input_needed
-from ._text import LATIN1_BOM, latin1_label, printed_whole
+from ._text import LATIN1_BOM, frame_steps_notes, latin1_label, printed_whole
 
 INCH_IN = {"in": 1.0, "mm": 25.4, "cm": 2.54, "m": 0.0254}
 NOT_DOF_CHANNELS = ("tx", "ty", "tz", "l")
@@ -364,6 +364,9 @@ class AmcSource:
         The channel columns of that bone line not read (the last value, possibly cut
         short, and the values absent from it): the last frame's cells there stay missing
         (:func:`with_channels`), so that the writer never completes that line.
+    frame_notes
+        A note when the frame numbers skip or repeat (frames are read in file order as
+        consecutive frames, so reports and outputs number them otherwise).
     """
 
     lines: tuple[str, ...]
@@ -377,27 +380,30 @@ class AmcSource:
     scale: float = 1.0
     cut_line: int = -1
     unread: tuple[int, ...] = ()
+    frame_notes: tuple[str, ...] = ()
 
     @property
     def notes(self) -> tuple[str, ...]:
-        """What the reader worked around, for reports: a file cut short inside a line."""
+        """What the reader worked around, for reports: frame numbers that skip or repeat
+        (``frame_notes``), a file cut short inside a line."""
         if self.cut_line < 0:
-            return ()
-        return ("the file ends inside its last line (no final line ending) and that line "
-                "looks cut short: its last value is not read",)
+            return self.frame_notes
+        return self.frame_notes + ("the file ends inside its last line (no final line "
+                                   "ending) and that line looks cut short: its last value "
+                                   "is not read",)
 
 
 def _parse_amc(path: Path, lines: tuple[str, ...], skeleton: Skeleton,
                line_columns: list[tuple[int, ...]]
-               ) -> tuple[np.ndarray, np.ndarray, list[int], list[int], bool, int,
-                          tuple[int, ...]]:
-    """Channel values, line index of each (frame, point), frame numbers and ends, whether
-    angles are degrees, the line the file was cut short inside (-1 if none) and the
-    channel columns of that line not read."""
+               ) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]], list[int], bool,
+                          int, tuple[int, ...]]:
+    """Channel values, line index of each (frame, point), each frame's number and the
+    line index of that number, frame ends, whether angles are degrees, the line the file
+    was cut short inside (-1 if none) and the channel columns of that line not read."""
     point_of = {name: j for j, name in enumerate(skeleton.names)}
     rows: list[np.ndarray] = []
     point_lines: list[np.ndarray] = []
-    numbers: list[int] = []
+    numbers: list[tuple[int, int]] = []
     ends: list[int] = []
     in_degrees = False
     cut_line, unread = -1, ()
@@ -419,7 +425,7 @@ def _parse_amc(path: Path, lines: tuple[str, ...], skeleton: Skeleton,
             if ends_inside:
                 cut_line = i
                 continue
-            numbers.append(int(tokens[0]))
+            numbers.append((int(tokens[0]), i))
             rows.append(np.full(skeleton.n_channels, np.nan))
             point_lines.append(np.full(skeleton.n_joints, -1))
             ends.append(i)
@@ -561,12 +567,18 @@ def read(path: Path, *, asf: Path | str | None = None, rate: float = 120.0,
         path, lines, skeleton, line_columns)
     angle_factor = 1.0 if in_degrees else 180.0 / np.pi
     values[:, skeleton.rotation_channel] *= angle_factor
+    first_frame = numbers[0][0]
+    frame_notes = frame_steps_notes(np.array([n for n, _ in numbers], dtype=np.float64),
+                                    np.array([i for _, i in numbers]), "frame number",
+                                    first_frame, subject="the frame numbers are",
+                                    read_as="frames are read in file order as consecutive "
+                                            "frames")
     source = AmcSource(lines, asf_path, tuple(channel_names), tuple(line_columns), point_lines,
                        tuple(ends), ChannelState.as_read(skeleton, values), angle_factor, scale,
-                       cut_line, unread)
+                       cut_line, unread, frame_notes)
     positions, observed = source.state.points()
     return Motion(positions * scale, observed, tuple(latin1_label(n) for n in skeleton.names),
-                  rate, label, source=source, path=path, first_frame=numbers[0])
+                  rate, label, source=source, path=path, first_frame=first_frame)
 
 
 # --------------------------------------------------------------------------- channel space

@@ -181,6 +181,29 @@ def test_rate_defaults_to_120_and_frame_numbers_start_where_the_file_does(tmp_pa
     assert motion.rate == 120.0 and motion.first_frame == 7 and motion.n_frames == 2
 
 
+def test_frame_numbers_that_skip_are_noted_and_the_frames_read_in_file_order(tmp_path):
+    # As TRC and CSV readers note a Frame column that skips; the AMC was renumbered silently.
+    motion = acclaim.read(write_pair(tmp_path, [frame(1), frame(2), frame(4, arm="40"),
+                                                frame(5), frame(7)]))
+    assert motion.n_frames == 5 and motion.first_frame == 1
+    assert acclaim.channels(motion)[0][2, 6] == 40          # frame 4 is the third frame
+    assert motion.source.notes == (
+        "the frame numbers are not consecutive (2 then 4 at line 12, and 1 more place(s)); "
+        "frames are read in file order as consecutive frames numbered from 1",)
+
+
+def test_a_repeated_frame_number_is_noted(tmp_path):
+    motion = acclaim.read(write_pair(tmp_path, [frame(3), frame(4), frame(4)]))
+    assert motion.n_frames == 3 and motion.first_frame == 3
+    assert motion.source.notes == (
+        "the frame numbers are not consecutive (4 then 4 at line 12); frames are read in "
+        "file order as consecutive frames numbered from 3",)
+
+
+def test_consecutive_frame_numbers_are_not_noted(tmp_path):
+    assert acclaim.read(write_pair(tmp_path, [frame(7), frame(8), frame(9)])).source.notes == ()
+
+
 def test_nan_values_are_gaps(tmp_path):
     motion = acclaim.read(write_pair(tmp_path, [frame(1), frame(2, arm="nan")]))
     _, observed = acclaim.channels(motion)
