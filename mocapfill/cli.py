@@ -597,8 +597,10 @@ def score(truth_path: Path, repaired_path: Path, gapped_path, as_json: bool,
     """Error of REPAIRED against TRUTH on the missing samples.
 
     rmse is the paper's RMSE over missing coordinates; rmse_3d the RMS 3-D marker error;
-    both in file units and in mm. No sample to score (none filled and observed in TRUTH)
-    is an error (exit 123), not an RMSE of nan.
+    both in TRUTH's units and in mm. Files in different length units (a CMU AMC in
+    in/0.45 and a C3D in mm) are compared in mm; a unit that is not a known length (a
+    BVH's) must be the same in both files. No sample to score (none filled and observed in
+    TRUTH) is an error (exit 123), not an RMSE of nan.
     """
     from .errors import MocapfillError
     from .metrics import score as compute

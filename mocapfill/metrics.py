@@ -76,6 +76,18 @@ def score(truth: Motion, repaired: Motion, gapped: Motion | None = None) -> Scor
     than the two files can store them (see :func:`storage_step`): the same clip read from
     a CSV with 3 decimals and from a float32 C3D differs in every sample by rounding alone.
     A sample still missing in ``repaired`` counts as unfilled and is left out of the RMSE.
+
+    ``rmse`` and ``rmse_3d`` are in the truth's units, ``rmse_mm`` and ``rmse_3d_mm`` in
+    mm (None when the truth's unit is not a known length). Clips in different units that
+    are both known lengths (a CMU AMC in ``in/0.45`` and the C3D ``convert`` wrote from it
+    in mm) are compared in mm; a unit that is not a known length (a BVH's ``unknown``)
+    must be the same in both, or the clips are refused.
+
+    Raises
+    ------
+    MocapfillError
+        Naming both files: different frames, markers or marker names, or units that
+        cannot be compared.
     """
     for clip, role in ((truth, "truth"), (repaired, "repaired"), (gapped, "gapped")):
         if clip is not None or role != "gapped":
@@ -83,18 +95,36 @@ def score(truth: Motion, repaired: Motion, gapped: Motion | None = None) -> Scor
     for other, role in ((repaired, "repaired"), (gapped, "gapped")):
         if other is not None:
             _check_comparable(truth, other, role)
+    truth_mm, repaired_mm = _common_scale(truth, repaired)
     if gapped is not None:
         target = truth.observed & ~gapped.observed
     else:
         both = truth.observed & repaired.observed
-        target = (truth.observed != repaired.observed) | (both & _differ(truth, repaired))
+        target = (truth.observed != repaired.observed) | (
+            both & _differ(truth, repaired, truth_mm, repaired_mm))
         target &= truth.observed
     scored = target & repaired.observed
-    value, value_3d = rmse(truth.positions, repaired.positions, scored)
-    factor = mm_per_unit(truth.units)
-    return Score(value, value_3d, None if factor is None else value * factor,
-                 None if factor is None else value_3d * factor, int(scored.sum()),
+    value, value_3d = rmse(truth.positions * truth_mm, repaired.positions * repaired_mm,
+                           scored)
+    if truth_mm != 1.0:         # computed in mm: back to the truth's units
+        value_mm, value_3d_mm = value, value_3d
+        value, value_3d = value / truth_mm, value_3d / truth_mm
+    else:
+        factor = mm_per_unit(truth.units)
+        value_mm = None if factor is None else value * factor
+        value_3d_mm = None if factor is None else value_3d * factor
+    return Score(value, value_3d, value_mm, value_3d_mm, int(scored.sum()),
                  int((target & ~repaired.observed).sum()))
+
+
+def _common_scale(truth: Motion, repaired: Motion) -> tuple[float, float]:
+    """Factors that bring both clips' positions to one unit: (1, 1) when their units are
+    the same length, the millimetres of each unit where they differ (both known lengths,
+    see :func:`_check_comparable`)."""
+    a, b = mm_per_unit(truth.units), mm_per_unit(repaired.units)
+    if a is None or b is None or a == b:
+        return 1.0, 1.0
+    return a, b
 
 
 # Relative rounding of float32 storage (C3D float words, float32 NPZ arrays): half a unit
@@ -140,15 +170,21 @@ def _integer_c3d_scale(motion: Motion) -> float | None:
     return source.scale if isinstance(source, C3DSource) and not source.is_float else None
 
 
-def _differ(truth: Motion, repaired: Motion) -> np.ndarray:
+def _differ(truth: Motion, repaired: Motion, truth_scale: float = 1.0,
+            repaired_scale: float = 1.0) -> np.ndarray:
     """(frames, markers) True where a sample of the two clips differs by more than their
     storage can explain: a step of each file (twice its rounding) plus float32's relative
     rounding. Exact comparison took every sample of a CSV truth against a C3D repair for
-    a filled one (24,599 samples scored on the walk sample instead of its 1,617 gaps)."""
-    tolerance = (storage_step(truth) + storage_step(repaired))[None] \
-        + _FLOAT32_SLACK * np.abs(truth.positions)
+    a filled one (24,599 samples scored on the walk sample instead of its 1,617 gaps).
+    Each clip's positions and storage step are taken times its scale (to one unit; the
+    float64 rounding of that is far inside float32's slack)."""
+    truth_values = truth.positions * truth_scale
+    tolerance = (storage_step(truth) * truth_scale
+                 + storage_step(repaired) * repaired_scale)[None] \
+        + _FLOAT32_SLACK * np.abs(truth_values)
     with np.errstate(invalid="ignore"):
-        return (np.abs(truth.positions - repaired.positions) > tolerance).any(axis=2)
+        return (np.abs(truth_values - repaired.positions * repaired_scale) > tolerance
+                ).any(axis=2)
 
 
 def _name(motion: Motion, role: str) -> str:
@@ -156,8 +192,9 @@ def _name(motion: Motion, role: str) -> str:
 
 
 def _check_comparable(truth: Motion, other: Motion, role: str) -> None:
-    """The same frames, markers (by label, in order) and units as the truth, or an error
-    naming both files: a silent mismatch would score the wrong samples."""
+    """The same frames and markers (by label, in order) as the truth, and units that can be
+    compared with its units (both known lengths, or the same unit), or an error naming both
+    files: a silent mismatch would score the wrong samples."""
     if other.positions.shape != truth.positions.shape:
         raise MocapfillError(f"{_name(other, role)} has {other.n_frames} frames × "
                              f"{other.n_markers} markers, {_name(truth, 'truth')} "
@@ -169,7 +206,9 @@ def _check_comparable(truth: Motion, other: Motion, role: str) -> None:
                              f"{other.labels[first]!r}, {_name(truth, 'truth')} "
                              f"{truth.labels[first]!r}")
     a, b = mm_per_unit(truth.units), mm_per_unit(other.units)
-    if a is not None and b is not None and a != b:
+    if (a is None or b is None) and other.units.strip().lower() != truth.units.strip().lower():
+        unknown = truth.units if a is None else other.units
         raise MocapfillError(f"{_name(other, role)} is in {other.units}, "
-                             f"{_name(truth, 'truth')} in {truth.units}")
+                             f"{_name(truth, 'truth')} in {truth.units}: {unknown!r} is not "
+                             "a known length, so the two cannot be compared")
 

@@ -323,13 +323,42 @@ def test_score_refuses_files_whose_markers_or_units_differ(clip_files):
     truth = formats.read(clip_files / "truth.npz")
     renamed = truth.replace(labels=("OTHER",) + tuple(truth.labels[1:]))
     formats.write(renamed, clip_files / "renamed.npz")
-    formats.write(truth.replace(positions=truth.positions / 1000, units="m"),
-                  clip_files / "metres.npz")
-    for other, words in (("renamed.npz", "'OTHER'"), ("metres.npz", "is in m")):
+    formats.write(truth.replace(units="unknown"), clip_files / "unknown.npz")
+    for other, words in (("renamed.npz", "'OTHER'"),
+                         ("unknown.npz", "is in unknown, truth file")):
         result = run("score", clip_files / "truth.npz", clip_files / other)
         assert result.exit_code == 123
         assert words in result.stderr and "truth.npz" in result.stderr
         assert len(result.stderr.strip().splitlines()) == 1
+    assert "'unknown' is not a known length" in result.stderr
+
+
+def test_score_compares_files_in_different_known_length_units_in_mm(clip_files):
+    # A CMU AMC (in/0.45) against the C3D convert wrote from it (mm) was refused.
+    d = clip_files
+    assert run("repair", d / "gapped.npz", d / "o.npz", "--method", "linear").exit_code == 0
+    repaired = formats.read(d / "o.npz")
+    formats.write(repaired.replace(positions=repaired.positions / 1000, units="m"),
+                  d / "o-metres.npz")
+    truth = formats.read(d / "truth.npz")
+    factor = 25.4 / 0.45
+    formats.write(truth.replace(positions=truth.positions / factor, units="in/0.45"),
+                  d / "truth-cmu.npz")
+    same = json.loads(run("score", d / "truth.npz", d / "o.npz", "--json").stdout)
+    assert (same["missing_samples"], same["unfilled_samples"]) == (60, 40)
+    for truth_file, repaired_file in (("truth.npz", "o-metres.npz"),
+                                      ("truth-cmu.npz", "o.npz"),
+                                      ("truth-cmu.npz", "o-metres.npz")):
+        result = run("score", d / truth_file, d / repaired_file, "--json")
+        assert result.exit_code == 0, result.output
+        scored = json.loads(result.stdout)
+        assert (scored["missing_samples"], scored["unfilled_samples"]) == (60, 40)
+        assert scored["rmse_mm"] == pytest.approx(same["rmse_mm"], rel=1e-9)
+        in_truth_units = same["rmse"] / (factor if truth_file == "truth-cmu.npz" else 1)
+        assert scored["rmse"] == pytest.approx(in_truth_units, rel=1e-9)
+    text = run("score", d / "truth-cmu.npz", d / "o.npz").stdout
+    assert text.startswith(f"RMSE {same['rmse'] / factor:.6g} in/0.45 (") and \
+        f"= {same['rmse_mm']:.3f} mm" in text
 
 
 def test_input_file_is_never_modified(clip_files):

@@ -1,5 +1,7 @@
 """End-to-end on real files through the command line: every format in, position formats
 out, gaps kept as gaps, same-format repairs that patch only the holes, bad files refused."""
+import json
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -72,6 +74,23 @@ def test_simulate_repair_score_on_a_cmu_clip_beats_linear(tmp_path):
         result = run("score", clip, out, "--gapped", gapped, "--json")
         scores[method] = __import__("json").loads(result.stdout)["rmse_mm"]
     assert scores["trnn"] < scores["linear"]
+
+
+def test_a_cmu_amc_scores_its_converted_and_repaired_c3d_as_the_c3d_does(tmp_path):
+    # convert writes AMC positions in mm: score refused the AMC (in/0.45) as the truth.
+    amc = shared_file("cmu/10_01.amc")
+    converted, gapped, repaired = (tmp_path / f"{n}.c3d" for n in ("c", "g", "r"))
+    assert run("convert", amc, converted).exit_code == 0
+    assert run("simulate", converted, gapped, "--ml", "30", "--seed", "1").exit_code == 0
+    assert run("repair", gapped, repaired, "--method", "linear").exit_code == 0
+    from_amc = run("score", amc, repaired, "--json")
+    assert from_amc.exit_code == 0, from_amc.output
+    from_c3d = json.loads(run("score", converted, repaired, "--json").stdout)
+    scored = json.loads(from_amc.stdout)
+    assert scored["missing_samples"] == from_c3d["missing_samples"] == 300
+    assert scored["rmse_mm"] == pytest.approx(from_c3d["rmse_mm"], rel=1e-6)
+    assert scored["rmse"] == pytest.approx(from_c3d["rmse_mm"] / mm_per_unit("in/0.45"),
+                                           rel=1e-6)
 
 
 @pytest.mark.parametrize("bad, words", [
