@@ -52,13 +52,15 @@ possibly cut last one, the absent ones) are never written: :func:`with_channels`
 them missing, a repair counts their gaps as ``left: cut short``, and the line keeps its
 bytes from its last value read on.
 
-An AMC holds joint angles only and is read with the ``.asf`` found beside it, so when the
-output's folder holds no ``.asf`` the reader would pick, the input's skeleton is copied
-there unchanged, under its own name, or under the output's stem where that name is taken
-(no file is ever replaced). A repair or a batch into another folder used to give AMC files
-that could not be read back. An ``.asf`` there that the reader would pick but that differs
-from the input's is refused before anything is written: the output would be read with the
-wrong skeleton.
+An AMC holds joint angles only and is read with the ``.asf`` found beside it, so unless
+the skeleton the reader would pick in the output's folder is already the input's, the
+input's skeleton is copied there unchanged, under the output's subject prefix (``10.asf``
+beside ``10_01.amc``, ``x.asf`` beside ``x.amc``), or under the output's stem where a
+different skeleton holds the prefix's name: both are names the reader tries before a
+folder's only ``.asf`` (no file is ever replaced; :func:`companions`). A repair or a batch
+into another folder used to give AMC files that could not be read back. A different
+``.asf`` named after the output's stem, the name the reader tries first, is refused
+before anything is written: the output would be read with the wrong skeleton.
 """
 from __future__ import annotations
 
