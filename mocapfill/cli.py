@@ -253,8 +253,8 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
               help="Fill only these markers (repeatable; shell globs like 'L*'). All others "
                    "still serve as evidence.")
 @click.option("--exclude", multiple=True, metavar="NAME|GLOB",
-              help="Never fill these markers (repeatable; globs). Patterns that match no "
-                   "marker are an error, as for --markers.")
+              help="Never fill these markers (repeatable; globs). Patterns that together "
+                   "match no marker are an error, as for --markers.")
 @click.option("--gaps-report", type=_OutputFile(), default=None,
               help="One file: write one row per gap (marker, first/last frame, length in "
                    "frames and seconds, method, status) to FILE.csv or FILE.json.")
