@@ -590,7 +590,9 @@ def _evidence_markers(motion):
                    "Default: the samples that differ between TRUTH and REPAIRED by more "
                    "than the two files' storage precision (decimals, float32, C3D scale).")
 @click.option("--json", "as_json", is_flag=True,
-              help='Print {"rmse", "rmse_3d", "rmse_mm", "rmse_3d_mm", "missing_samples"}.')
+              help='Print {"rmse", "rmse_3d", "rmse_mm", "rmse_3d_mm", "missing_samples", '
+                   '"unfilled_samples"}: the samples scored, and those to score that '
+                   'REPAIRED still lacks (left out of the RMSE).')
 @_zero_option
 def score(truth_path: Path, repaired_path: Path, gapped_path, as_json: bool,
           zero_is_missing: str) -> None:
