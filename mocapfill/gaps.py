@@ -201,8 +201,9 @@ def _joint_proxy(motion: Motion):
                                                  skeleton.translation_columns)]
     joints = [j for j, cols in enumerate(columns) if cols]
     joint_observed = np.stack([observed[:, columns[j]].all(axis=1) for j in joints], axis=1)
+    # The clip's path, so that an error about the proxy names the file.
     proxy = Motion(np.zeros(joint_observed.shape + (3,)), joint_observed,
-                   tuple(motion.labels[j] for j in joints), motion.rate)
+                   tuple(motion.labels[j] for j in joints), motion.rate, path=motion.path)
     return joints, values, observed, columns, proxy
 
 

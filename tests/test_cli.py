@@ -831,3 +831,16 @@ def test_bench_output_files_are_checked_before_the_run(tmp_path, monkeypatch):
         assert "output folder" in result.output and "does not exist" in result.output
         assert ".tmp" not in result.output
     assert ran == []
+
+
+def test_simulate_names_a_skeleton_file_with_nothing_to_remove_in_channel_space_too(tmp_path):
+    # "123: one line on stderr names it and why": the channel-space proxy clip had no
+    # path, so the BVH → BVH error did not say which file had nothing to remove.
+    from .formats.test_bvh import write_bvh
+
+    path = write_bvh(tmp_path, [" ".join(["nan"] * 9)] * 3)
+    for out in ("o.bvh", "o.trc"):      # channel space (same format), then positions
+        result = run("simulate", path, tmp_path / out, "--ml", "1")
+        assert result.exit_code == 123, out
+        assert f"{path}: " in result.stderr, result.stderr
+        assert not (tmp_path / out).exists()
