@@ -796,6 +796,10 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
     if module is None or not hasattr(module, "channels"):
         raise ParameterError("channel-space repair needs a clip read from a BVH or AMC file")
     values, observed = module.channels(motion)
+    if observed.size and not observed.any():
+        # As in position space: no value to fill from is a failure, not an unchanged copy.
+        raise NothingToRepair(f"{named(motion.path)}no joint channel has a single observed "
+                              "value; nothing to fill from")
     skeleton: Skeleton = motion.source.state.skeleton
     owner = np.full(values.shape[1], -1)
     for joint, columns in enumerate(skeleton.rotation_columns):

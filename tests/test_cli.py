@@ -844,3 +844,16 @@ def test_simulate_names_a_skeleton_file_with_nothing_to_remove_in_channel_space_
         assert result.exit_code == 123, out
         assert f"{path}: " in result.stderr, result.stderr
         assert not (tmp_path / out).exists()
+
+
+def test_a_skeleton_clip_with_no_observed_channel_fails_in_channel_space_too(tmp_path):
+    # README: a file with nothing to repair from fails (exit 123) for a single file too.
+    # BVH → TRC failed so, but BVH → BVH wrote an unchanged copy and exited 0.
+    from .formats.test_bvh import write_bvh
+
+    path = write_bvh(tmp_path, [" ".join(["nan"] * 9)] * 3)
+    for out in ("o.bvh", "o.trc"):      # channel space (same format), then positions
+        result = run("repair", path, tmp_path / out)
+        assert result.exit_code == 123, (out, result.stderr)
+        assert f"{path}: " in result.stderr and "nothing to fill from" in result.stderr
+        assert not (tmp_path / out).exists()
