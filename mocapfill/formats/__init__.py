@@ -2,8 +2,9 @@
 
 Each format module exposes ``read(path, **options) -> Motion`` and
 ``write(motion, path, **options) -> None``. A writer given a Motion whose ``source`` came
-from its own format patches a copy of the original file (only the samples that were
-missing and are now observed change); otherwise it writes a new file. ``write`` here
+from its own format patches a copy of the original file (only the samples whose observed
+state changed: those filled since reading, and those a ``simulate`` made missing, written
+as the format's gaps); otherwise it writes a new file. ``write`` here
 makes every output atomic: the module writes a temporary file beside the target, which is
 renamed over it only when complete. Readers may return a clip of no frames (a BVH with
 ``Frames: 0``, an empty NPZ) so that ``info`` can report it; ``write`` refuses one.

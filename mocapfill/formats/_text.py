@@ -1,7 +1,9 @@
 """Shared machinery of the delimited text formats (CSV and TRC).
 
 Both formats keep the original text in a :class:`TextSource` handle so that a writer can
-patch it: only the cells of samples that were missing and are now observed change; every
+patch it: only the cells of samples whose observed state changed are rewritten (filled
+since reading, or made missing by ``simulate``: blanked with the file's own missing token,
+:func:`patched_lines`); every
 other byte of the file (header, delimiters, quoting, line endings, the cells of untouched
 samples) is written back as it was read.
 

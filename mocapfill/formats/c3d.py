@@ -37,7 +37,8 @@ Writing
 A Motion read from a C3D file carries a :class:`C3DSource`. ``write`` then copies the
 original bytes and overwrites, for each sample that was missing and is now observed, the
 four words of that sample: x, y, z in the file's own processor format and storage, and
-word 4 = 0 (residual 0 = "computed, not measured" per c3d.org). Header, parameters,
+word 4 = 0 (residual 0 = "computed, not measured" per c3d.org); a sample made missing
+since reading (``simulate``) gets x = y = z = 0 and word 4 = -1, a C3D gap. Header, parameters,
 analog samples, events and every other sample stay byte-identical. Any other Motion is
 written as a new Intel float C3D, its frame numbers in TRIAL:ACTUAL_START_FIELD and
 ACTUAL_END_FIELD too (the header's words hold 65535 for a frame number past it), and

@@ -53,7 +53,9 @@ file does not state.
 Writing: a Motion read from a CSV file (its ``source`` is this module's handle, and it
 still has the file's frames and labels) is written as a patched copy of that file: only
 the cells of samples that were missing and are now observed change, and of those only
-the missing cells (a number beside a blank cell stays as it is). A filled cell is
+the missing cells (a number beside a blank cell stays as it is); the cells of a sample
+made missing since reading (``simulate``) are blanked with the file's own missing token.
+A filled cell is
 printed with the largest number of decimals that column's observed cells use (the file's
 own precision; ``decimals=`` overrides), so read-back values agree with the Motion to that
 precision. Any other Motion is written as a new plain CSV:

@@ -50,7 +50,9 @@ Units: ``Units``, else the ``units=`` option, else mm. ``first_frame``: the firs
 Writing: a Motion read from a TRC file (and still holding its frames and labels) is
 written as a patched copy: only the missing cells of samples that were missing and are
 now observed change (a number beside a blank cell stays as it is), printed with the
-largest number of decimals that column's observed cells use (``decimals=`` overrides).
+largest number of decimals that column's observed cells use (``decimals=`` overrides);
+the cells of a sample made missing since reading (``simulate``) are blanked with the
+file's own missing token.
 Any other Motion is written in exactly the layout OpenSim's ``TRCFileAdapter`` writes:
 tab-delimited, ``PathFileType\\t4\\t(X/Y/Z)\\t<name>``, the 8 header keys and their
 values, each marker name followed by three tabs, ``X1 Y1 Z1`` ... numbered from 1, a
