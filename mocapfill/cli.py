@@ -261,7 +261,8 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
 @click.option("--max-jump", "max_jump_mm", type=float, default=None, metavar="MM",
               help="Reject (leave missing, report) a fill whose first sample at a gap end "
                    "misses the constant-velocity prediction from the observed side by more "
-                   "than MM millimetres. Default: the larger of 40 mm and 5x the marker's "
+                   "than MM millimetres (file units where the clip's unit is not a known "
+                   "length, a BVH's). Default: the larger of 40 mm and 5x the marker's "
                    "largest observed frame-to-frame acceleration (plus its largest step "
                    "where one observed sample stands alone); 0 disables the check.")
 @click.option("--check", is_flag=True,
