@@ -90,7 +90,9 @@ class FileRecord:
     gaps_left: int = 0
     seconds: float = 0.0
     frames: int = 0
-    notes: tuple[str, ...] = ()     # what the output's format could not hold (formats.write)
+    # What the reader worked around (a Frame column that skips numbers, a row cut short:
+    # report.reader_notes), then what the output's format could not hold (formats.write).
+    notes: tuple[str, ...] = ()
 
 
 @dataclass
@@ -424,16 +426,20 @@ def repair_file(job: FileJob) -> FileRecord:
     """
     from . import formats
     from .pipeline import repair
+    from .report import reader_notes
 
     if _TERMINATING:        # a stopped worker's pool handed it the next file: none is started
         os._exit(128 + _TERMINATING[0])
     started = time.perf_counter()
     frames = 0
 
+    read_notes: tuple[str, ...] = ()
+
     def record(status: str, reason: str = "", filled: int = 0, left: int = 0,
                notes: tuple[str, ...] = ()) -> FileRecord:
         return FileRecord(str(job.input), str(job.output), status, reason, filled, left,
-                          round(time.perf_counter() - started, 4), frames, notes)
+                          round(time.perf_counter() - started, 4), frames,
+                          read_notes + tuple(notes))
 
     problem = formats.skeleton_output_problem(job.output, job.input)
     if problem is not None:         # known before reading: no solve thrown away
@@ -441,6 +447,7 @@ def repair_file(job: FileJob) -> FileRecord:
     try:
         motion = _read(job)
         frames = motion.n_frames
+        read_notes = reader_notes(motion)       # as `repair IN OUT` prints them
         try:
             result = repair(motion, _options_for(job, motion.rate))
         except NothingToRepair as exc:

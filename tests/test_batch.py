@@ -226,6 +226,25 @@ def test_check_summary_counts_the_gaps_left_and_records_keep_the_output_formats_
         assert formats.read(record["output"]).n_markers == 3
 
 
+def test_records_keep_what_the_reader_worked_around(tmp_path):
+    # A TRC whose Frame# column skips numbers: `repair IN OUT` prints the reader's note,
+    # and a batch's record keeps it (the gap report's frames are rows, not the file's).
+    folder = tmp_path / "in"
+    folder.mkdir()
+    formats.write(with_gap(smooth_clip(60, 4), 1, 20, 30), folder / "t.trc")
+    lines = (folder / "t.trc").read_text().splitlines(keepends=True)
+    row = next(i for i, line in enumerate(lines) if line.startswith("40\t"))
+    lines[row] = "70" + lines[row][2:]
+    (folder / "t.trc").write_text("".join(lines))
+    report_path = tmp_path / "r.json"
+    result = run(folder, "-o", tmp_path / "out", "-j", "1", "--report", report_path, *LINEAR)
+    assert result.exit_code == 0, result.output
+    record, = _report(report_path)["files"]
+    assert record["status"] == "repaired"
+    note, = record["notes"]
+    assert note.startswith("the Frame# column is not consecutive (39 then 70 at line ")
+
+
 def test_rerun_skips_up_to_date_outputs_and_redoes_changed_inputs(clean_tree, tmp_path):
     root, files = clean_tree
     out = tmp_path / "out"
