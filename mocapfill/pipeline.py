@@ -786,6 +786,9 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
     A gap some of whose channels were left missing is "left: channels missing", or "left:
     cut short" where the format kept a fill out (an AMC's value the file may have been cut
     short inside: ``acclaim.with_channels``), so the counts say what the output holds.
+    No gap is left partly filled: where the runs filled would fill only part of a point's
+    gap (one the policy leaves, or with a channel left missing), the fills of every channel
+    moving the point are put back over that gap, as for a jump.
     """
     from . import formats
     from .skeleton import Skeleton, observed_points
@@ -855,6 +858,19 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
             rejected = {(g.marker, g.start) for g in done
                         if not repaired.observed[g.start:g.stop, g.marker].all()}
         refused = fill & ~repaired.source.state.observed
+        # A gap reported left holds no fill. Channel runs follow the policy one by one,
+        # so a point's gap the policy leaves could be filled in part: an end gap with a
+        # run that starts inside it, a clip-long gap made of several channels' runs, a
+        # gap longer than --max-gap made of shorter runs. Such a gap (or one a rejected
+        # neighbour cut into) gets the fills of every channel moving its point put back,
+        # until no gap is partly filled (points sharing those channels lose them too).
+        while partial := [g for g in before
+                          if repaired.observed[g.start:g.stop, g.marker].any()
+                          and not repaired.observed[g.start:g.stop, g.marker].all()]:
+            for gap in partial:
+                fill[gap.start:gap.stop, moves[:, gap.marker]] = False
+            repaired = module.with_channels(motion, np.where(fill, solved, values),
+                                            observed | fill)
     else:
         repaired = motion
     outcomes = []

@@ -94,3 +94,38 @@ def test_a_rank_above_the_channels_is_refused_in_terms_of_channels(tmp_path):
     assert "--rank 10 is larger than this clip allows (9: the smaller of the 9 channels " \
            "and frames)" in message
     assert "markers" not in message
+
+
+def _chain_with_gaps(tmp_path, runs):
+    """The chain of :func:`_chain_with_a_gap`, ``nan`` in each (column, start, stop)."""
+    from .formats.test_bvh import write_bvh
+
+    rows = []
+    for f in range(40):
+        cells = [f"{f:.4f}", "0", "0", f"{2 * f:.4f}", "0", "0", f"{3 * f:.4f}", f"{f:.4f}",
+                 "0"]
+        for column, start, stop in runs:
+            if start <= f < stop:
+                cells[column] = "nan"
+        rows.append(" ".join(cells))
+    return formats.read(write_bvh(tmp_path, rows))
+
+
+@pytest.mark.parametrize(("runs", "options"), [
+    # The hips' turn missing from the start, the arm's turn from inside that gap on: the
+    # arm's end is missing from frame 0 (an end gap, left) though the arm's run is inside.
+    ([(3, 0, 6), (6, 3, 11)], {}),
+    # Every channel moving the arm's end missing somewhere: missing through the whole clip.
+    ([(0, 0, 2), (3, 2, 20), (6, 15, 40)], {}),
+    # A run too long for --max-gap beside a short one: the arm's end would be filled where
+    # only the short run crosses its gap.
+    ([(3, 10, 16), (6, 14, 26)], {"max_gap_frames": 8}),
+])
+def test_a_point_whose_gap_is_left_gets_no_fill_from_its_channels(tmp_path, runs, options):
+    gapped = _chain_with_gaps(tmp_path, runs)
+    result = repair(gapped, RepairOptions(space="channels", method="linear", **options))
+    assert any(o.status != "filled" for o in result.gaps)
+    for outcome in result.gaps:
+        gap = outcome.gap
+        filled = result.motion.observed[gap.start:gap.stop, gap.marker]
+        assert filled.all() if outcome.status == "filled" else not filled.any(), outcome
