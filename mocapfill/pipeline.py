@@ -122,6 +122,12 @@ class RepairOptions:
             given = ", ".join(f"--{name.replace('_', '-')}" for name in unknown)
             raise ParameterError(f"{given} does not apply to method {self.method!r}")
         check_solver_options(self.solver_options)
+        # A count given as a whole float (10.0: from JSON, numpy) is that count; the
+        # solvers' loops take ints (range(10.0) is a TypeError).
+        counts = {name: int(value) for name, value in self.solver_options.items()
+                  if name in _COUNTS and value is not None}
+        if counts:
+            object.__setattr__(self, "solver_options", {**self.solver_options, **counts})
 
 
 # The ranges of the options the command line offers (--rank ... --max-iter), whatever the

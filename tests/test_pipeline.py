@@ -179,6 +179,19 @@ def test_repair_given_a_method_name_as_options_says_what_it_takes():
         repair(smooth_clip(50, 3), "linear")
 
 
+@pytest.mark.parametrize("method", ["trnn", "trnn-paper", "trnn-lowrank", "svt", "tsmc",
+                                    "ialm", "psvt"])
+def test_a_count_given_as_a_whole_float_is_that_count(method):
+    # Accepted as a whole number, then a bare TypeError from the solver's loop.
+    _, gapped = gapped_clip()
+    options = RepairOptions(method=method, solver_options={"max_iter": 3.0})
+    assert options.solver_options["max_iter"] == 3
+    assert isinstance(options.solver_options["max_iter"], int)
+    result = repair(gapped, options)
+    np.testing.assert_array_equal(result.motion.positions[gapped.observed],
+                                  gapped.positions[gapped.observed])
+
+
 def teleport(matrix, observed, **_):
     """A broken method: fills every missing entry 1000 units away."""
     return np.where(observed, matrix, 1000.0)
