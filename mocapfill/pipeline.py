@@ -59,6 +59,7 @@ class RepairOptions:
         Completion method name (see ``mocapfill.solvers.METHODS``).
     solver_options
         Keyword arguments for the method (rank, lam, mu, rho, eta0, tol, max_iter, ...).
+        None for one of those seven is the method's default.
     max_gap_frames
         Gaps longer than this many frames (a whole number ≥ 0) are left missing; None
         fills every length.
@@ -122,18 +123,20 @@ class RepairOptions:
             given = ", ".join(f"--{name.replace('_', '-')}" for name in unknown)
             raise ParameterError(f"{given} does not apply to method {self.method!r}")
         check_solver_options(self.solver_options)
-        # A count given as a whole float (10.0: from JSON, numpy) is that count; the
-        # solvers' loops take ints (range(10.0) is a TypeError).
-        counts = {name: int(value) for name, value in self.solver_options.items()
-                  if name in _COUNTS and value is not None}
-        if counts:
-            object.__setattr__(self, "solver_options", {**self.solver_options, **counts})
+        # None for a checked option is the method's default, as on the command line (the
+        # solvers take None for a value); a count given as a whole float (10.0: from
+        # JSON, numpy) is that count (range(10.0) is a TypeError).
+        given = {name: int(value) if name in _COUNTS and value is not None else value
+                 for name, value in self.solver_options.items()
+                 if value is not None or name not in _CHECKED}
+        object.__setattr__(self, "solver_options", given)
 
 
 # The ranges of the options the command line offers (--rank ... --max-iter), whatever the
 # method: checked for callers from Python as for the command line.
 _COUNTS = ("rank", "max_iter")
 _POSITIVE = ("lam", "eta0", "tol", "max_iter", "rank")
+_CHECKED = ("rank", "lam", "mu", "rho", "eta0", "tol", "max_iter")
 
 
 def check_solver_options(options: dict) -> None:

@@ -192,6 +192,22 @@ def test_a_count_given_as_a_whole_float_is_that_count(method):
                                   gapped.positions[gapped.observed])
 
 
+@pytest.mark.parametrize("method", ["trnn", "trnn-paper", "trnn-lowrank", "gaussian", "svt",
+                                    "tsmc", "ialm", "psvt"])
+def test_an_option_given_as_none_is_the_methods_default(method):
+    # The range check lets None pass (the default); the solvers took it as a value and
+    # failed with a bare TypeError ('<=' not supported between 'float' and 'NoneType').
+    from mocapfill.solvers import get_method, option_names
+
+    checked = {"rank", "lam", "mu", "rho", "eta0", "tol", "max_iter"}
+    names = option_names(get_method(method)) & checked
+    options = RepairOptions(method=method, solver_options=dict.fromkeys(names))
+    assert options.solver_options == {}
+    _, gapped = gapped_clip()
+    np.testing.assert_array_equal(repair(gapped, options).motion.positions,
+                                  repair(gapped, RepairOptions(method=method)).motion.positions)
+
+
 def teleport(matrix, observed, **_):
     """A broken method: fills every missing entry 1000 units away."""
     return np.where(observed, matrix, 1000.0)
