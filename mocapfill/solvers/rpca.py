@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import ParameterError
 from ._linalg import as_problem, soft_threshold, svt
 
 __all__ = ["ialm", "partial_svt", "psvt"]
@@ -37,6 +38,9 @@ def partial_svt(x: np.ndarray, tau: float, keep: int) -> np.ndarray:
 
 
 def _alm(matrix, observed, prox, lam, mu0, rho, mu_max_factor, tol, max_iter):
+    for name, value in (("mu0", mu0), ("mu_max_factor", mu_max_factor)):
+        if value is not None and not value > 0:     # 1/μ in every step
+            raise ParameterError(f"{name} must be > 0, got {value}")
     matrix, observed = as_problem(matrix, observed)
     m, n = matrix.shape
     D = np.where(observed, matrix, 0.0)

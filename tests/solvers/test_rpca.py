@@ -51,3 +51,14 @@ def test_ialm_with_missing_entries():
 def test_psvt_rejects_negative_rank():
     with pytest.raises(ValueError):
         rpca.psvt(np.eye(3), np.ones((3, 3), dtype=bool), rank=-1)
+
+
+@pytest.mark.parametrize("method", [rpca.ialm, rpca.psvt])
+@pytest.mark.parametrize("option", [{"mu0": 0.0}, {"mu0": -1.0}, {"mu_max_factor": 0.0},
+                                    {"mu_max_factor": -2.0}])
+def test_a_penalty_that_is_not_positive_is_a_parameter_error(method, option):
+    # mu0 = 0 was a bare ZeroDivisionError (1 / mu) from inside the loop.
+    from mocapfill.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="must be > 0"):
+        method(np.eye(3), np.ones((3, 3), dtype=bool), **option)
