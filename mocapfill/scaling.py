@@ -8,6 +8,7 @@ observed entries before solving, and undoes both afterwards. One scale for the w
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,11 +24,17 @@ class UnitScale:
     @classmethod
     def fit(cls, matrix: np.ndarray, observed: np.ndarray) -> UnitScale:
         counts = observed.sum(axis=1, keepdims=True)
-        sums = np.where(observed, matrix, 0.0).sum(axis=1, keepdims=True)
-        centre = np.divide(sums, counts, out=np.zeros_like(sums), where=counts > 0)
-        centred = np.where(observed, matrix - centre, 0.0)
+        # Sums and squares are taken in units of a power of two near the largest observed
+        # value (exact: the same centre and scale to the last bit), so that coordinates
+        # above 1e154 do not square to inf, which made every method's fill non-finite.
+        largest = float(np.abs(matrix, where=observed, out=np.zeros(matrix.shape)).max(
+            initial=0.0))
+        unit = math.ldexp(1.0, math.frexp(largest)[1]) if 0.0 < largest < np.inf else 1.0
+        sums = np.where(observed, matrix / unit, 0.0).sum(axis=1, keepdims=True)
+        centre = np.divide(sums, counts, out=np.zeros_like(sums), where=counts > 0) * unit
+        centred = np.where(observed, (matrix - centre) / unit, 0.0)
         n_obs = int(observed.sum())
-        rms = float(np.sqrt((centred ** 2).sum() / n_obs)) if n_obs else 0.0
+        rms = float(np.sqrt((centred ** 2).sum() / n_obs)) * unit if n_obs else 0.0
         return cls(centre=centre, scale=rms if rms > 0 else 1.0)
 
     def forward(self, matrix: np.ndarray) -> np.ndarray:

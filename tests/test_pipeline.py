@@ -54,6 +54,22 @@ def test_repair_is_unit_invariant():
     np.testing.assert_allclose(m, mm, rtol=1e-6, atol=1e-6 * np.abs(mm).max())
 
 
+# The jump check's squared steps still overflow there (to an infinite threshold).
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
+@pytest.mark.parametrize("method", ["trnn", "linear", "gaussian"])
+def test_coordinates_too_large_to_square_are_repaired_as_any_others(method):
+    # Above 1e154 the unit scale's mean square was inf and every method, linear
+    # interpolation included, failed with "returned non-finite values". A power of two
+    # scales every step exactly: the same repair, scaled, to the last bit.
+    _, gapped = gapped_clip()
+    factor = 2.0 ** 600                                         # 4e180
+    huge = gapped.replace(positions=gapped.positions * factor)
+    options = RepairOptions(method=method)
+    mm, scaled = repair(gapped, options), repair(huge, options)
+    assert [o.status for o in scaled.gaps] == [o.status for o in mm.gaps]
+    np.testing.assert_array_equal(scaled.motion.positions, mm.motion.positions * factor)
+
+
 def test_marker_missing_for_the_whole_clip_is_left_missing_and_reported():
     _, gapped = gapped_clip()
     gapped = with_gap(gapped, 9, 0, gapped.n_frames)
