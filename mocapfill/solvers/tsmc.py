@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import ParameterError
 from ._linalg import (
     as_problem,
     iteration_dtype,
@@ -72,8 +73,9 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, lam: float | None = No
         Shared pipeline options, ignored.
     """
     matrix, observed = as_problem(matrix, observed)
-    if mu < 0 or rho < 1 or eta0 <= 0:
-        raise ValueError("need mu >= 0, rho >= 1, eta0 > 0")
+    if mu < 0 or rho < 1 or eta0 <= 0 or not eta_max > 0:     # 1/η in every step
+        raise ParameterError(f"need mu >= 0, rho >= 1, eta0 > 0, eta_max > 0; got mu={mu}, "
+                             f"rho={rho}, eta0={eta0}, eta_max={eta_max}")
     dtype = iteration_dtype(dtype)
     m, n = matrix.shape
     lam = 100.0 / np.sqrt(max(m, n)) if lam is None else float(lam)

@@ -109,3 +109,11 @@ def test_float32_iteration_fills_as_float64_does():
     assert rel(single, M, ~observed) <= 1.1 * rel(double, M, ~observed)
     with pytest.raises(ValueError, match="dtype"):
         tsmc.complete(data, observed, dtype=np.int32)
+
+
+def test_a_penalty_cap_that_is_not_positive_is_a_parameter_error():
+    # eta_max = 0 was a bare ZeroDivisionError (1 / eta) from inside the loop.
+    from mocapfill.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="eta_max > 0"):
+        tsmc.complete(np.eye(3), np.ones((3, 3), dtype=bool), eta_max=0.0)
