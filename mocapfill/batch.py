@@ -383,9 +383,12 @@ def _write_in_place(motion, path: Path) -> tuple[str, ...]:
 def _temp_patterns(output: Path) -> list[str]:
     """Globs of the temporary files ``formats.write`` and ``_write_in_place`` leave beside
     ``output`` while writing it."""
-    name = glob.escape(output.name)
-    return [f".{name}.*.tmp", f".{name}.*.inplace{glob.escape(output.suffix)}",
-            f"..{name}.*.tmp"]
+    from .formats import temp_prefix
+
+    in_place = f".inplace{output.suffix}"
+    return [f"{glob.escape(temp_prefix(output.name))}*.tmp",
+            f"{glob.escape(temp_prefix(output.name, in_place))}*{glob.escape(in_place)}",
+            f".{glob.escape(temp_prefix(output.name, in_place))}*.tmp"]
 
 
 def remove_temp_files(jobs: Iterable[FileJob]) -> None:

@@ -1,6 +1,7 @@
 """Batch repair: discovery, mirrored outputs, resume, failures, report, exit codes, Dask."""
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import json
 import multiprocessing
@@ -667,3 +668,33 @@ def test_a_worker_stopped_by_the_pool_starts_no_further_file(tmp_path, monkeypat
         batch.repair_file(job)
     assert exits == [128 + signal.SIGTERM]
     assert not (tmp_path / "out").exists()
+
+
+def test_in_place_repairs_a_file_whose_name_is_as_long_as_the_file_system_allows(tmp_path):
+    # In place, the temporary file is named after the input, and formats.write's own
+    # temporary after that one: both passed the 255-byte limit of a name.
+    path = tmp_path / f"{'a' * 251}.npz"
+    formats.write(with_gap(smooth_clip(200, 6), 2, 50, 80), path)
+    result = run(path, "--in-place", "-j", "1", "--max-jump", "0", *LINEAR)
+    assert result.exit_code == 0, result.output
+    assert formats.read(path).observed.all()
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]
+
+
+@pytest.mark.parametrize("in_place", [False, True])
+def test_temporaries_of_an_output_with_a_long_name_are_found_to_be_removed(tmp_path,
+                                                                           in_place):
+    # What a worker killed mid-write leaves, as formats.write and an in-place write name it.
+    output = tmp_path / f"{'a' * 251}.npz"
+    job = batch.FileJob(output if in_place else tmp_path / "in.npz", output,
+                        in_place=in_place)
+    with pytest.raises(InterruptedError), contextlib.ExitStack() as stack:
+        if in_place:
+            outer = stack.enter_context(formats.atomic_output(output, suffix=".inplace.npz"))
+            made = [outer, stack.enter_context(formats.atomic_output(Path(outer)))]
+        else:
+            made = [stack.enter_context(formats.atomic_output(output))]
+        assert all(os.path.exists(p) for p in made)
+        batch.remove_temp_files([job])
+        assert not [p for p in made if os.path.exists(p)]
+        raise InterruptedError

@@ -857,3 +857,17 @@ def test_a_skeleton_clip_with_no_observed_channel_fails_in_channel_space_too(tmp
         assert result.exit_code == 123, (out, result.stderr)
         assert f"{path}: " in result.stderr and "nothing to fill from" in result.stderr
         assert not (tmp_path / out).exists()
+
+
+@pytest.mark.parametrize("stem", ["a" * 250, "é" * 125])      # 250 bytes, + .json: 255
+def test_an_output_whose_name_is_as_long_as_the_file_system_allows_is_written(clip_files,
+                                                                              stem):
+    # The temporary file beside it is named after it: ".<name>.<random>.tmp" passed the
+    # 255-byte limit of a name, and a name the file system takes failed with "File name
+    # too long" (exit 123).
+    out = clip_files / f"{stem}.npz"
+    report = clip_files / f"{stem}.json"
+    result = run("repair", clip_files / "gapped.npz", out, "--gaps-report", report)
+    assert result.exit_code == 0, result.output
+    assert formats.read(out).observed.all() and json.loads(report.read_text())
+    assert not [p for p in clip_files.iterdir() if p.name.startswith(".")]

@@ -281,7 +281,7 @@ def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = 
         after = (companions(motion, final_path or path) if companions is not None
                  else None)
         with atomic_output(path) as tmp:
-            module.write(motion, Path(tmp), **options)
+            module.write(motion, Path(tmp), **{"target": final_path or path, **options})
         if after is not None:
             after()
     except FormatError as exc:
@@ -317,7 +317,8 @@ def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = Non
         yield str(path)
         return
     directory = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=directory)
+    fd, tmp = tempfile.mkstemp(prefix=temp_prefix(path.name, suffix), suffix=suffix,
+                               dir=directory)
     os.close(fd)
     try:
         yield tmp
@@ -329,6 +330,22 @@ def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = Non
     except BaseException:
         _discard(tmp)
         raise
+
+
+# The longest name most file systems take (bytes), and the random part mkstemp adds.
+NAME_MAX = 255
+_RANDOM_CHARS = 8
+
+
+def temp_prefix(name: str, suffix: str = ".tmp") -> str:
+    """How :func:`atomic_output` starts the name of its temporary file for the file
+    ``name``: ``.<name>.``, the name cut short where ``.<name>.<random><suffix>`` would
+    pass :data:`NAME_MAX` bytes (an output named with 255 bytes, which the file system
+    takes, failed with "File name too long")."""
+    room = NAME_MAX - len(os.fsencode(suffix)) - _RANDOM_CHARS - 2
+    while len(os.fsencode(name)) > room:
+        name = name[:-1]
+    return f".{name}."
 
 
 def _special_file(path: Path) -> bool:

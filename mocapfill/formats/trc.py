@@ -107,8 +107,6 @@ HEADER_KEYS = ("DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units",
 
 _AXIS_LABEL = re.compile(r"^[XYZ]\d+$", re.IGNORECASE)
 _OPENSIM_REJECTS = re.compile(r"[\s\\/*+]")
-# formats.write hands us a tempfile.mkstemp name ".<target>.<8 random chars>.tmp".
-_TEMP_NAME = re.compile(r"^\.(?P<name>.+)\.[A-Za-z0-9_]{8}\.tmp$")
 
 
 def read(path: Path, *, rate: float | None = None, units: str | None = None,
@@ -207,7 +205,7 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
 
 
 def write(motion: Motion, path: Path, *, decimals: int | None = None,
-          **_ignored: object) -> None:
+          target: Path | None = None, **_ignored: object) -> None:
     """Write a TRC: a patched copy of the source file when there is one, else a new file.
 
     Parameters
@@ -215,8 +213,10 @@ def write(motion: Motion, path: Path, *, decimals: int | None = None,
     motion
         The clip.
     path
-        Output file (``formats.write`` passes a temporary file it renames when done;
-        the name in the ``PathFileType`` line is the final one).
+        Output file (``formats.write`` passes a temporary file it renames when done).
+    target
+        The file ``path`` becomes, whose name the ``PathFileType`` line states (default:
+        ``path``; the temporary's name is cut short where the target's is long).
     decimals
         Decimals of written coordinates; None matches the source file's precision
         (patch) or writes the shortest exact text (new file).
@@ -233,7 +233,7 @@ def write(motion: Motion, path: Path, *, decimals: int | None = None,
     elif motion.n_markers == 0:
         raise FormatError(path, "the clip has no markers; a TRC file needs at least one")
     else:
-        write_lines(path, new_file_lines(motion, _target_name(Path(path)), decimals))
+        write_lines(path, new_file_lines(motion, Path(target or path).name, decimals))
 
 
 def patches(motion: Motion) -> bool:
@@ -336,11 +336,6 @@ def _notes(lines: Sequence[str], row_lines: np.ndarray, delimiter: str,
         notes.append("the last row is shorter than the header implies; its absent cells "
                      "read as missing")
     return notes
-
-
-def _target_name(path: Path) -> str:
-    match = _TEMP_NAME.match(path.name)
-    return match["name"] if match else path.name
 
 
 def _int(text: str | None) -> int | None:

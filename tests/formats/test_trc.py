@@ -301,6 +301,14 @@ def test_motion_from_another_format_is_written_as_a_new_file(tmp_path):
     assert out.read_text().startswith("PathFileType\t4\t(X/Y/Z)\ta.trc\n")
 
 
+def test_a_new_file_with_a_long_name_states_that_name_not_its_temporary_s(tmp_path):
+    # The temporary file's name is cut short where the output's is long (255 bytes).
+    csv_path = write_text(tmp_path, "A_X,A_Y,A_Z\n1.5,2,3\n", "a.csv")
+    out = tmp_path / f"{'a' * 251}.trc"
+    formats.write(formats.read(csv_path), out)
+    assert out.read_text().startswith(f"PathFileType\t4\t(X/Y/Z)\t{out.name}\n")
+
+
 # ----------------------------------------------------------------------------- real files
 
 def test_new_file_makes_names_that_opensim_renaming_makes_alike_unique(tmp_path):
