@@ -225,7 +225,13 @@ def _inside(path: Path, folder: Path | None) -> bool:
     folder)."""
     if folder is None or not folder.exists():
         return False
-    return path.resolve().is_relative_to(folder.resolve())
+    return _real(path).is_relative_to(_real(folder))
+
+
+def _real(path: Path) -> Path:
+    """``path`` with its symbolic links resolved as far as they lead. Not Path.resolve(),
+    which raises RuntimeError on a link loop (before Python 3.13): a traceback, exit 1."""
+    return Path(os.path.realpath(path))
 
 
 def _glob_base(pattern: str) -> Path:
@@ -286,7 +292,7 @@ def discover(paths: Iterable[str | os.PathLike],
             raise ParameterError(f"{text}: no such file or folder")
     unique: dict[Path, tuple[Path, Path]] = {}
     for file, relative in pairs:
-        unique.setdefault(file.resolve(), (file, relative))
+        unique.setdefault(_real(file), (file, relative))
     return list(unique.values())
 
 
@@ -301,7 +307,7 @@ def _is_up_to_date(source: Path, output: Path) -> bool:
         written = output.stat()
         return (not stat.S_ISDIR(written.st_mode)
                 and written.st_mtime_ns > source.stat().st_mtime_ns)
-    except FileNotFoundError:
+    except OSError:         # absent, a link loop, ...: redone, and its write says why
         return False
 
 
@@ -334,7 +340,7 @@ def plan(paths: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None =
                                  f"{', '.join(sorted(_known_suffixes()))}")
     out_root = None if out_dir is None else Path(out_dir)
     found = discover(paths, exclude=out_root)
-    inputs = {file.resolve() for file, _ in found}
+    inputs = {_real(file) for file, _ in found}
     jobs: list[FileJob] = []
     skipped: list[FileRecord] = []
     claimed: dict[Path, Path] = {}
@@ -345,7 +351,7 @@ def plan(paths: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None =
             output = out_root / relative
             if suffix is not None:
                 output = output.with_suffix(suffix)
-            key = output.resolve()
+            key = _real(output)
             if key in inputs:
                 raise ParameterError(f"{output} is an input; refusing to overwrite it "
                                      "(choose another output folder, or --in-place)")

@@ -348,7 +348,8 @@ def _check_gaps_report(report: Path, in_path: Path, out_path: Path) -> None:
     if report.is_dir():
         raise ParameterError(f"--gaps-report {report} is a folder; name a .csv or .json file")
     for other, role in ((in_path, "the input"), (out_path, "the output")):
-        if report.resolve() == other.resolve() or (
+        # realpath, not Path.resolve(), which raises on a link loop (before Python 3.13).
+        if os.path.realpath(report) == os.path.realpath(other) or (
                 report.exists() and other.exists() and os.path.samefile(report, other)):
             raise ParameterError(f"--gaps-report {report} is {role} file")
 

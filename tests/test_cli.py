@@ -871,3 +871,14 @@ def test_an_output_whose_name_is_as_long_as_the_file_system_allows_is_written(cl
     assert result.exit_code == 0, result.output
     assert formats.read(out).observed.all() and json.loads(report.read_text())
     assert not [p for p in clip_files.iterdir() if p.name.startswith(".")]
+
+
+def test_a_gaps_report_named_by_a_symlink_loop_is_written_in_its_place(clip_files):
+    # Path.resolve() raised RuntimeError on a loop: a traceback, and exit 1, which is
+    # --check's "gaps left".
+    report = clip_files / "gaps.csv"
+    report.symlink_to("gaps.csv")
+    result = run("repair", clip_files / "gapped.npz", clip_files / "out.npz",
+                 "--gaps-report", report)
+    assert result.exit_code == 0, result.output
+    assert not report.is_symlink() and report.read_text().startswith("marker,")

@@ -64,6 +64,7 @@ before anything is written: the output would be read with the wrong skeleton.
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -611,7 +612,8 @@ def companions(motion: Motion, path: Path):
     asfs = _asf_files(folder)
 
     def same(found: Path) -> bool:
-        return (found.resolve() == source.asf_path.resolve()
+        # realpath, not Path.resolve(), which raises on a link loop (before Python 3.13).
+        return (os.path.realpath(found) == os.path.realpath(source.asf_path)
                 or found.read_bytes() == source.asf_path.read_bytes())
 
     tried = _asf_names(path)

@@ -664,6 +664,19 @@ def test_a_different_skeleton_under_the_outputs_stem_is_refused_before_writing(t
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["copy_01.asf"]
 
 
+def test_a_skeleton_named_by_a_symlink_loop_beside_the_output_is_a_format_error(tmp_path):
+    # Path.resolve() raised RuntimeError on the loop: a traceback, not a one-line error.
+    from mocapfill import formats
+
+    (tmp_path / "in").mkdir()
+    (tmp_path / "out").mkdir()
+    motion = acclaim.read(write_pair(tmp_path / "in", [frame(1)], asf_name="tiny.asf"))
+    (tmp_path / "out" / "copy.asf").symlink_to("copy.asf")
+    with pytest.raises(FormatError, match="copy_01.amc: .*symbolic links"):
+        formats.write(motion, tmp_path / "out" / "copy_01.amc")
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["copy.asf"]
+
+
 @pytest.mark.parametrize("other", ["tiny.asf", "copy.asf"])
 def test_a_different_skeleton_the_reader_would_try_later_is_outranked_by_the_copy(tmp_path,
                                                                                   other):
