@@ -107,6 +107,8 @@ HEADER_KEYS = ("DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units",
 
 _AXIS_LABEL = re.compile(r"^[XYZ]\d+$", re.IGNORECASE)
 _OPENSIM_REJECTS = re.compile(r"[\s\\/*+]")
+# What would split the PathFileType line into lines (str.splitlines') or cells (a tab).
+_HEADER_BREAKS = re.compile("[\t\n\v\f\r\x1c-\x1e\x85\u2028\u2029]+")
 
 
 def read(path: Path, *, rate: float | None = None, units: str | None = None,
@@ -248,7 +250,7 @@ def new_file_lines(motion: Motion, name: str, decimals: int | None = None) -> li
     n_frames, n_markers = motion.n_frames, motion.n_markers
     values = (format_float(rate), format_float(rate), str(n_frames), str(n_markers),
               motion.units, format_float(rate), str(motion.first_frame), str(n_frames))
-    lines = [f"PathFileType\t4\t(X/Y/Z)\t{name}\n",
+    lines = [f"PathFileType\t4\t(X/Y/Z)\t{_HEADER_BREAKS.sub('_', name)}\n",
              "\t".join(HEADER_KEYS) + "\n",
              "\t".join(values) + "\n",
              "Frame#\tTime\t" + "".join(f"{name}\t\t\t"

@@ -309,6 +309,18 @@ def test_a_new_file_with_a_long_name_states_that_name_not_its_temporary_s(tmp_pa
     assert out.read_text().startswith(f"PathFileType\t4\t(X/Y/Z)\t{out.name}\n")
 
 
+@pytest.mark.parametrize("odd", ["\n", "\r", "\t", "\r\n", "\u2028"])
+def test_a_new_file_named_with_a_line_break_or_tab_keeps_its_header_lines(tmp_path, odd):
+    # The name went into the PathFileType line as it was: a line break there split the
+    # header, and OpenSim read the file's own name as the header keys.
+    csv_path = write_text(tmp_path, "A_X,A_Y,A_Z\n1.5,2,3\n", "a.csv")
+    out = tmp_path / f"a{odd}b.trc"
+    formats.write(formats.read(csv_path), out)
+    lines = out.read_bytes().decode().split("\n")
+    assert lines[0] == "PathFileType\t4\t(X/Y/Z)\ta_b.trc"
+    assert lines[1].startswith("DataRate\t")
+
+
 # ----------------------------------------------------------------------------- real files
 
 def test_new_file_makes_names_that_opensim_renaming_makes_alike_unique(tmp_path):
