@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import importlib.util
 import json
 import multiprocessing
@@ -712,3 +713,20 @@ def test_an_output_named_by_a_symlink_loop_is_written_in_its_place(tmp_path):
     result = run(source.parent, "-o", out, "-j", "1", "--max-jump", "0", *LINEAR)
     assert result.exit_code == 0, result.output
     assert formats.read(out / "clip.npz").observed.all()
+
+
+def test_a_report_that_cannot_be_written_is_named_not_its_temporary(clean_tree, tmp_path,
+                                                                     monkeypatch):
+    # The error named ".batch.json.x1y2z3.tmp", a file the user never asked for.
+    root, _ = clean_tree
+
+    def disk_full(self, *args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self))
+
+    monkeypatch.setattr(Path, "write_text", disk_full)
+    report = tmp_path / "batch.json"
+    result = run(root, "-o", tmp_path / "out", "-j", "1", "--report", report, *LINEAR)
+    assert result.exit_code == 123
+    assert f"mocapfill: error: {report}: No space left on device\n" in result.stderr
+    assert ".tmp" not in result.stderr
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]

@@ -1,4 +1,5 @@
 """The command line: exit codes, one-line errors, atomic outputs, JSON shapes."""
+import errno
 import json
 import os
 import re
@@ -882,3 +883,19 @@ def test_a_gaps_report_named_by_a_symlink_loop_is_written_in_its_place(clip_file
                  "--gaps-report", report)
     assert result.exit_code == 0, result.output
     assert not report.is_symlink() and report.read_text().startswith("marker,")
+
+
+def _disk_full(self, *args, **kwargs):
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self))
+
+
+def test_a_gaps_report_that_cannot_be_written_is_named_not_its_temporary(clip_files,
+                                                                          monkeypatch):
+    # The error named ".gaps.csv.x1y2z3.tmp", a file the user never asked for.
+    monkeypatch.setattr(Path, "write_text", _disk_full)
+    report = clip_files / "gaps.csv"
+    result = run("repair", clip_files / "gapped.npz", clip_files / "out.npz",
+                 "--gaps-report", report)
+    assert result.exit_code == 123
+    assert result.stderr == f"mocapfill: error: {report}: No space left on device\n"
+    assert not [p for p in clip_files.iterdir() if p.name.startswith(".")]

@@ -317,8 +317,11 @@ def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = Non
         yield str(path)
         return
     directory = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=temp_prefix(path.name, suffix), suffix=suffix,
-                               dir=directory)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=temp_prefix(path.name, suffix), suffix=suffix,
+                                   dir=directory)
+    except OSError as exc:
+        raise _naming(exc, path) from None
     os.close(fd)
     try:
         yield tmp
@@ -327,9 +330,20 @@ def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = Non
         else:
             shutil.copymode(mode_from, tmp)
         os.replace(tmp, path)
+    except OSError as exc:
+        _discard(tmp)
+        if exc.filename is None or os.fspath(exc.filename) != tmp:
+            raise
+        raise _naming(exc, path) from None
     except BaseException:
         _discard(tmp)
         raise
+
+
+def _naming(exc: OSError, path: Path) -> OSError:
+    """``exc`` about ``path``, where it named the temporary file (a full disk, a folder
+    that takes no new file): the user knows the output's name, not ".out.json.x1y2.tmp"."""
+    return OSError(exc.errno, exc.strerror, str(path))
 
 
 # The longest name most file systems take (bytes), and the random part mkstemp adds.
