@@ -275,15 +275,17 @@ def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = 
         raise FormatError(path, f"output folder {directory} does not exist")
     tmp = None
     try:
-        # Files a written file needs beside it to be read back (an AMC's skeleton): checked
-        # before writing, put in place after.
+        # Files a written file needs beside it to be read back (an AMC's skeleton): put in
+        # place first, so that the file never stands without them (a copy that failed
+        # after it left an AMC that a batch rerun skipped as up to date). A write that
+        # fails then leaves the companion, a complete file the next run finds and keeps.
         companions = getattr(module, "companions", None)
-        after = (companions(motion, final_path or path) if companions is not None
-                 else None)
+        before = (companions(motion, final_path or path) if companions is not None
+                  else None)
+        if before is not None:
+            before()
         with atomic_output(path) as tmp:
             module.write(motion, Path(tmp), **{"target": final_path or path, **options})
-        if after is not None:
-            after()
     except FormatError as exc:
         # The module saw only the temporary name, or named no file at all.
         if exc.path is None or (tmp is not None and exc.path == tmp):

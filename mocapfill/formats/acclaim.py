@@ -596,8 +596,8 @@ def companions(motion: Motion, path: Path):
     """Before an AMC is written to ``path``: check the skeleton it will be read with.
 
     Returns None when the ``.asf`` the reader finds beside ``path`` is the input's (same
-    file or same bytes), else the function that copies the input's skeleton there once the
-    AMC is written. Raises FormatError (naming ``path``) when a different skeleton there
+    file or same bytes), else the function that copies the input's skeleton there before
+    the AMC is written. Raises FormatError (naming ``path``) when a different skeleton there
     is named after the output's stem, the name the reader tries first.
 
     The copy bears a name the reader tries before falling back to a folder's only

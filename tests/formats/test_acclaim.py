@@ -1,6 +1,8 @@
 """ASF/AMC: the tolerant parser, canonical Acclaim FK, channel space and the patching writer."""
 from __future__ import annotations
 
+import errno
+import os
 import re
 from pathlib import Path
 
@@ -662,6 +664,30 @@ def test_a_different_skeleton_under_the_outputs_stem_is_refused_before_writing(t
     with pytest.raises(FormatError, match="differs from the input's skeleton"):
         formats.write(motion, tmp_path / "out" / "copy_01.amc")
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["copy_01.asf"]
+
+
+def test_an_amc_is_never_left_without_its_skeleton_when_the_copy_fails(tmp_path,
+                                                                        monkeypatch):
+    # The skeleton was copied after the AMC was written: a copy that failed (a full disk,
+    # Ctrl-C) left an AMC that reads with no skeleton or another subject's, and that a
+    # batch rerun skipped as up to date.
+    from mocapfill import formats
+
+    (tmp_path / "in").mkdir()
+    (tmp_path / "out").mkdir()
+    motion = acclaim.read(write_pair(tmp_path / "in", [frame(1), frame(2, arm="10")],
+                                     asf_name="tiny.asf"))
+    write_bytes = Path.write_bytes
+
+    def disk_full_for_the_skeleton(self, data):
+        if self.name.startswith(".copy.asf."):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self))
+        return write_bytes(self, data)
+
+    monkeypatch.setattr(Path, "write_bytes", disk_full_for_the_skeleton)
+    with pytest.raises(FormatError, match="No space left on device"):
+        formats.write(motion, tmp_path / "out" / "copy_01.amc")
+    assert list((tmp_path / "out").iterdir()) == []
 
 
 def test_a_skeleton_named_by_a_symlink_loop_beside_the_output_is_a_format_error(tmp_path):
