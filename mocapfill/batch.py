@@ -400,8 +400,10 @@ def _temp_patterns(output: Path) -> list[str]:
 def remove_temp_files(jobs: Iterable[FileJob]) -> None:
     """Delete temporary files of interrupted writes (a worker killed mid-write)."""
     for job in jobs:
-        for pattern in _temp_patterns(job.output):
-            for leftover in job.output.parent.glob(pattern):
+        # In place, the write goes beside the symbolic link's target (_write_in_place).
+        output = _real(job.output) if job.in_place else job.output
+        for pattern in _temp_patterns(output):
+            for leftover in output.parent.glob(pattern):
                 leftover.unlink(missing_ok=True)
 
 

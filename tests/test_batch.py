@@ -730,3 +730,23 @@ def test_a_report_that_cannot_be_written_is_named_not_its_temporary(clean_tree, 
     assert f"mocapfill: error: {report}: No space left on device\n" in result.stderr
     assert ".tmp" not in result.stderr
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_temporaries_of_an_in_place_write_through_a_symlink_are_found_to_be_removed(
+        tmp_path):
+    # An in-place write replaces the link's target, so its temporaries lie beside the
+    # target; they were looked for beside the link, and a worker killed mid-write left
+    # them there.
+    target = tmp_path / "data" / "clip.npz"
+    target.parent.mkdir()
+    target.write_bytes(b"")
+    (tmp_path / "links").mkdir()
+    link = tmp_path / "links" / "clip.npz"
+    link.symlink_to(target)
+    job = batch.FileJob(link, link, in_place=True)
+    with pytest.raises(InterruptedError), contextlib.ExitStack() as stack:
+        outer = stack.enter_context(formats.atomic_output(target, suffix=".inplace.npz"))
+        made = [outer, stack.enter_context(formats.atomic_output(Path(outer)))]
+        batch.remove_temp_files([job])
+        assert not [p for p in made if os.path.exists(p)]
+        raise InterruptedError
