@@ -381,9 +381,16 @@ def _write_in_place(motion, path: Path) -> tuple[str, ...]:
     link would have replaced it by a plain file and left the target unrepaired)."""
     from . import formats
 
-    path = Path(os.path.realpath(path))
+    given, path = path, _real(path)
     with formats.atomic_output(path, suffix=f".inplace{path.suffix}", mode_from=path) as tmp:
-        return formats.write(motion, tmp, final_path=path)
+        try:
+            return formats.write(motion, tmp, final_path=path)
+        except FormatError as exc:
+            if exc.path != tmp:
+                raise
+            # It names the temporary file formats.write was given (a full disk while
+            # writing it); the user knows the file they repair.
+            raise FormatError(given, exc.problem, exit_code=exc.exit_code) from None
 
 
 def _temp_patterns(output: Path) -> list[str]:

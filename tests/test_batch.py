@@ -750,3 +750,24 @@ def test_temporaries_of_an_in_place_write_through_a_symlink_are_found_to_be_remo
         batch.remove_temp_files([job])
         assert not [p for p in made if os.path.exists(p)]
         raise InterruptedError
+
+
+def test_an_in_place_write_that_fails_names_the_input_not_its_temporary(tmp_path,
+                                                                        monkeypatch):
+    # The record's reason named ".clip.npz.x1y2z3.inplace.npz", a file the user never saw.
+    from mocapfill.formats import npz
+
+    path = tmp_path / "clip.npz"
+    formats.write(with_gap(smooth_clip(200, 6), 2, 50, 80), path)
+    before = path.read_bytes()
+
+    def disk_full(motion, out, **options):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(out))
+
+    monkeypatch.setattr(npz, "write", disk_full)
+    result = run(path, "--in-place", "-j", "1", "--max-jump", "0", *LINEAR)
+    assert result.exit_code == 123
+    assert f"mocapfill: error: {path}: No space left on device\n" in result.stderr
+    assert ".inplace" not in result.stderr and ".tmp" not in result.stderr
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["clip.npz"]
