@@ -899,3 +899,28 @@ def test_a_gaps_report_that_cannot_be_written_is_named_not_its_temporary(clip_fi
     assert result.exit_code == 123
     assert result.stderr == f"mocapfill: error: {report}: No space left on device\n"
     assert not [p for p in clip_files.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".c3d", ".csv"])
+def test_an_input_that_cannot_be_read_says_why_not_that_it_cannot_be_parsed(clip_files,
+                                                                             monkeypatch,
+                                                                             suffix):
+    # An unreadable file (permission denied) was "cannot parse (PermissionError: ...)",
+    # and an .npz "not an .npz archive (no zip signature)": its content was blamed.
+    import builtins
+    import io
+
+    path = clip_files / f"in{suffix}"
+    formats.write(formats.read(clip_files / "gapped.npz"), path)
+    opened = builtins.open
+
+    def denied(file, *args, **kwargs):
+        if os.fspath(file) == str(path):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), os.fspath(file))
+        return opened(file, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "open", denied)
+    monkeypatch.setattr(io, "open", denied)
+    result = run("repair", path, clip_files / f"out{suffix}")
+    assert result.exit_code == 123
+    assert result.stderr == f"mocapfill: error: {path}: cannot read (Permission denied)\n"

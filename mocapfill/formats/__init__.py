@@ -106,15 +106,33 @@ def read(path: str | os.PathLike, **options) -> Motion:
     if not path.exists():
         raise FormatError(path, "no such file", exit_code=2)
     try:
+        _check_readable(path)
         return module.read(path, **options)
     except (FormatError, ParameterError):
         raise
     except MemoryError:
         raise FormatError(path, "file declares more data than fits in memory") from None
+    except OSError as exc:
+        if exc.errno is None:       # numpy's "cannot interpret ... as a pickle" and such
+            raise FormatError(path, f"cannot parse ({type(exc).__name__}: {exc})") from None
+        # The system refused (permission denied, an I/O error): not the content's fault.
+        # Named where it is another file (an AMC's skeleton).
+        other = ("" if exc.filename is None or os.fspath(exc.filename) == str(path)
+                 else f"{exc.filename}: ")
+        raise FormatError(path, f"cannot read ({other}{exc.strerror})") from None
     except (ValueError, IndexError, KeyError, TypeError, OverflowError, UnicodeDecodeError,
-            EOFError, OSError) as exc:
+            EOFError) as exc:
         # A parser tripping on a corrupt file: report it as the file's fault, one line.
         raise FormatError(path, f"cannot parse ({type(exc).__name__}: {exc})") from None
+
+
+def _check_readable(path: Path) -> None:
+    """Raise the OSError of opening a regular file ``path`` for reading (permission
+    denied), which a reader could take for a file of the wrong kind (numpy's zip check
+    returns False). A named pipe is not opened twice: its writer would see a reader go."""
+    if stat.S_ISREG(os.stat(path).st_mode):
+        with open(path, "rb"):
+            pass
 
 
 def _umask() -> int:
