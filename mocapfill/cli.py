@@ -449,12 +449,17 @@ def _repair_batch(paths, options, *, max_gap_s, out_dir, in_place, force, jobs, 
 
     if gaps_report is not None:
         raise ParameterError("--gaps-report is for one file; a batch writes --report FILE.json")
+    # The output folder the batch is about to create may hold the report (-o out --report
+    # out/batch.json); it is made for the report if no file's output made it.
+    in_out_dir = (report_path is not None and out_dir is not None
+                  and os.path.abspath(report_path.parent) == os.path.abspath(out_dir)
+                  and not out_dir.exists())
     if report_path is not None and (report_path.suffix.lower() != ".json"
-                                    or not report_path.parent.is_dir()
+                                    or not (report_path.parent.is_dir() or in_out_dir)
                                     or report_path.is_dir()):
         # Checked now, not after hours of repairs.
-        raise ParameterError(f"--report must name a .json file in an existing folder, got "
-                             f"{report_path}")
+        raise ParameterError(f"--report must name a .json file in an existing folder (or "
+                             f"in the -o folder), got {report_path}")
     progress = _BatchProgress()
     try:
         report = repair_many(paths, out_dir, options=options, jobs=jobs, scheduler=scheduler,
@@ -480,6 +485,8 @@ def _finish_batch(report, report_path: Path | None) -> None:
         click.echo(f"mocapfill: error: {line.encode('utf-8', 'backslashreplace').decode()}",
                    err=True)
     if report_path is not None:
+        # In the -o folder (checked before the batch): made here if no output made it.
+        report_path.parent.mkdir(parents=True, exist_ok=True)
         report.write_json(report_path)
     click.echo(report.summary(), err=True)
 

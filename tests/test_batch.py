@@ -364,6 +364,7 @@ def test_globs_mirror_the_tree_under_their_fixed_folder(clean_tree, tmp_path):
     (["x.npz", "-o", "out", "--in-place"], "not both"),
     (["x.npz", "-o", "out", "--gaps-report", "g.csv"], "--report FILE.json"),
     (["x.npz", "-o", "out", "--report", "folder.json"], "--report must name a .json file"),
+    (["x.npz", "-o", "out", "--report", "out/sub/r.json"], "--report must name a .json file"),
     (["x.npz", "x.csv", "-o", "out", "--suffix", ".trc"],
      "differ only in their suffix, which --suffix replaces"),
     # -j was ignored without a word: the cluster's workers run the files.
@@ -379,6 +380,23 @@ def test_batch_usage_errors_exit_2_with_one_line(tmp_path, monkeypatch, args, wo
     assert result.exit_code == 2
     assert not (tmp_path / "out").exists()      # refused before any file was repaired
     assert words in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_the_report_may_go_in_the_output_folder_the_batch_creates(tmp_path, monkeypatch):
+    # -o out --report out/batch.json on a first run: out does not exist yet; it was
+    # refused as "not in an existing folder". The report's folder is made for it even when
+    # no output made it (every file failed).
+    monkeypatch.chdir(tmp_path)
+    formats.write(with_gap(smooth_clip(50, 3), 1, 20, 25), tmp_path / "x.npz")
+    result = run("x.npz", "-o", "out", "--report", "out/batch.json", *LINEAR)
+    assert result.exit_code == 0, result.output
+    record, = _report(tmp_path / "out" / "batch.json")["files"]
+    assert record["status"] == "repaired"
+    (tmp_path / "bad.npz").write_bytes(b"not a zip")
+    result = run("bad.npz", "-o", "out2", "--report", "out2/batch.json", *LINEAR)
+    assert result.exit_code == 123, result.output
+    record, = _report(tmp_path / "out2" / "batch.json")["files"]
+    assert record["status"] == "failed"
 
 
 @pytest.mark.parametrize("address", ["garbage", ""])
