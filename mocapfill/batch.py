@@ -300,12 +300,13 @@ def _is_up_to_date(source: Path, output: Path) -> bool:
     # Strictly newer: on a coarse-clock file system an equal time could hide an input
     # changed after its output was written; redoing a file is safe, skipping it is not.
     # A folder where the output goes is no output: the file is repaired and its write
-    # fails, naming the folder, rather than skipped on every rerun.
+    # fails, naming the folder, rather than skipped on every rerun. Nor is an empty file
+    # (`touch`, a copy that failed): outputs are written whole, and no format's is empty.
     import stat
 
     try:
         written = output.stat()
-        return (not stat.S_ISDIR(written.st_mode)
+        return (not stat.S_ISDIR(written.st_mode) and written.st_size > 0
                 and written.st_mtime_ns > source.stat().st_mtime_ns)
     except OSError:         # absent, a link loop, ...: redone, and its write says why
         return False

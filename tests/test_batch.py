@@ -259,6 +259,23 @@ def test_rerun_skips_up_to_date_outputs_and_redoes_changed_inputs(clean_tree, tm
     assert set(statuses.values()) == {"skipped"}
 
 
+def test_an_empty_file_where_an_output_goes_is_not_an_up_to_date_output(clean_tree,
+                                                                          tmp_path):
+    # An empty file newer than the input (touched, a copy that failed) was "skipped" on
+    # every rerun; outputs are written whole and no format's output is empty.
+    root, files = clean_tree
+    out = tmp_path / "out"
+    empty = out / files["gapped0"].relative_to(root)
+    empty.parent.mkdir(parents=True)
+    empty.touch()
+    result = run(root, "-o", out, "-j", "1", "--report", tmp_path / "r.json", *LINEAR)
+    assert result.exit_code == 0, result.output
+    record = next(r for r in _report(tmp_path / "r.json")["files"]
+                  if Path(r["input"]) == files["gapped0"])
+    assert record["status"] == "repaired"
+    assert formats.read(empty).observed.all()
+
+
 def test_a_folder_where_an_output_goes_is_not_an_up_to_date_output(clean_tree, tmp_path):
     # A folder newer than the input at the output's path was "skipped" (exit 0): the file
     # was never repaired, and no rerun would repair it.
