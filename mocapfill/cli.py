@@ -485,9 +485,15 @@ def _finish_batch(report, report_path: Path | None) -> None:
         click.echo(f"mocapfill: error: {line.encode('utf-8', 'backslashreplace').decode()}",
                    err=True)
     if report_path is not None:
-        # In the -o folder (checked before the batch): made here if no output made it.
-        report_path.parent.mkdir(parents=True, exist_ok=True)
-        report.write_json(report_path)
+        try:
+            # In the -o folder (checked before the batch): made here if no output made it.
+            report_path.parent.mkdir(parents=True, exist_ok=True)
+            report.write_json(report_path)
+        except BaseException:
+            # The batch's outcome is not lost with its report (a full disk): the summary
+            # line comes before the error about the report.
+            click.echo(report.summary(), err=True)
+            raise
     click.echo(report.summary(), err=True)
 
 

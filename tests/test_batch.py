@@ -416,6 +416,27 @@ def test_the_report_may_go_in_the_output_folder_the_batch_creates(tmp_path, monk
     assert record["status"] == "failed"
 
 
+def test_a_report_that_cannot_be_written_still_leaves_the_summary_line(tmp_path,
+                                                                       monkeypatch):
+    # A full disk at the end of a long batch: the error about the report came alone, and
+    # how many files were repaired was nowhere.
+    import errno
+
+    from mocapfill.batch import BatchReport
+
+    def full(self, path):
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(BatchReport, "write_json", full)
+    formats.write(with_gap(smooth_clip(50, 3), 1, 20, 25), tmp_path / "x.npz")
+    result = run("x.npz", "-o", "out", "--report", "r.json", *LINEAR)
+    assert result.exit_code != 0
+    lines = result.stderr.strip().splitlines()
+    assert SUMMARY.match(lines[0]) and lines[0].startswith("1 repaired"), lines
+    assert "No space left on device" in lines[-1] and len(lines) == 2, lines
+
+
 @pytest.mark.parametrize("address", ["garbage", ""])
 def test_a_malformed_scheduler_address_is_a_usage_error_not_a_traceback(tmp_path,
                                                                        monkeypatch, address):
