@@ -819,6 +819,31 @@ def test_an_output_that_is_a_named_pipe_is_written_through_not_replaced(tmp_path
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted({fifo.name, target.name})
 
 
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="Linux's /proc/self/fd")
+def test_an_output_that_is_the_commands_own_stdout_file_gets_the_text_after_it(tmp_path):
+    # `bench accuracy --json /dev/stdout > out.txt`: /dev/stdout links to /proc/self/fd/1,
+    # a regular file there, so the temporary file was renamed over the link (as root, the
+    # system's /dev/stdout became a regular file) and out.txt kept the table alone. A link
+    # of our own to /proc/self/fd/1 stands in for /dev/stdout.
+    import subprocess
+
+    link = tmp_path / "stdout-link"
+    link.symlink_to("/proc/self/fd/1")
+    script = ("import sys; from pathlib import Path; "
+              "from mocapfill.formats import write_text_atomically; "
+              "print('table', flush=True); "
+              "write_text_atomically(Path(sys.argv[1]), '{\"rows\": []}\\n'); print('end')")
+    out = tmp_path / "out.txt"
+    with open(out, "w") as stdout:
+        done = subprocess.run([sys.executable, "-c", script, str(link)], stdout=stdout,
+                              stderr=subprocess.PIPE, text=True,
+                              cwd=Path(__file__).resolve().parents[1])
+    assert done.returncode == 0, done.stderr
+    assert out.read_text() == 'table\n{"rows": []}\nend\n'
+    assert link.is_symlink() and os.readlink(link) == "/proc/self/fd/1"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.txt", "stdout-link"]
+
+
 def test_bench_output_files_are_checked_before_the_run(tmp_path, monkeypatch):
     import mocapfill.bench
     import mocapfill.bench_paper

@@ -26,6 +26,7 @@ import importlib
 import os
 import shutil
 import stat
+import sys
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -332,7 +333,23 @@ def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = Non
     /dev/full`` left a JSON file in place of the device, ``--json /dev/stdout`` printed
     nothing). Atomicity means nothing there; a write that fails (``/dev/full``: no space
     left) raises as it happens.
+
+    A ``path`` that is this process's own standard output or error, where that is a
+    regular file (``--json /dev/stdout > out.txt``), gets the text after what the command
+    printed there: renaming over ``/dev/stdout`` (a link to ``/proc/self/fd/1``) replaced
+    the system's link with a regular file when run as root, and opening the file anew
+    would overwrite what the command printed before.
     """
+    stream = _own_stream(path)
+    if stream is not None:
+        with tempfile.TemporaryDirectory(prefix="mocapfill-") as folder:
+            tmp = os.path.join(folder, f"out{suffix}")
+            yield tmp
+            stream.flush()
+            with open(tmp, "rb") as written, open(stream.fileno(), "wb",
+                                                  closefd=False) as through:
+                shutil.copyfileobj(written, through)
+        return
     if _special_file(path):
         yield str(path)
         return
@@ -380,6 +397,24 @@ def temp_prefix(name: str, suffix: str = ".tmp") -> str:
     while len(os.fsencode(name)) > room:
         name = name[:-1]
     return f".{name}."
+
+
+def _own_stream(path: Path):
+    """``sys.stdout`` or ``sys.stderr`` where ``path`` is that stream's regular file
+    (``/dev/stdout``, ``/proc/self/fd/2`` or the file's own name), else None."""
+    try:
+        target = os.stat(path)
+    except OSError:
+        return None
+    if not stat.S_ISREG(target.st_mode):
+        return None
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            if stream is not None and os.path.samestat(target, os.fstat(stream.fileno())):
+                return stream
+        except (OSError, ValueError, AttributeError):     # closed, or not a real file
+            continue
+    return None
 
 
 def _special_file(path: Path) -> bool:
