@@ -11,6 +11,7 @@ measured copy bandwidth plus its temporal solve), and the same clip is repaired 
 """
 from __future__ import annotations
 
+import math
 import statistics
 import subprocess
 import sys
@@ -312,4 +313,9 @@ def format_speed_table(rows: list[SpeedRow]) -> str:
 
 
 def rows_as_dicts(rows: list[SpeedRow]) -> list[dict]:
-    return [asdict(r) for r in rows]
+    """The rows for ``--json``: a timing a skipped case does not have (NaN) is null, as
+    NaN is not JSON."""
+    def value(v):
+        return None if isinstance(v, float) and math.isnan(v) else v
+
+    return [{k: value(v) for k, v in asdict(r).items()} for r in rows]

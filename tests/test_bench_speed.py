@@ -105,3 +105,18 @@ def test_the_benchmark_times_the_package_byte_compiled(monkeypatch):
     bench_speed.run_speed(runs=1, quick=True)
     assert compiled.exists()
     assert compiled.stat().st_mtime >= Path(cli.__file__).stat().st_mtime
+
+
+def test_json_rows_of_a_skipped_case_are_strict_json():
+    # A case skipped without ../shared/data has no timings: they were NaN in --json, which
+    # is not JSON (json.loads of other languages and jq refuse it); null, as info --json.
+    import json
+
+    from mocapfill.bench_speed import rows_as_dicts
+
+    skipped = SpeedRow("85_02 ml40", "trnn", 0, 0, 0, np.nan, np.nan, np.nan, np.nan,
+                       notes=["skipped: ../shared/data absent"])
+    text = json.dumps(rows_as_dicts([skipped]), allow_nan=False)
+    row = json.loads(text)[0]
+    assert row["wall_min_s"] is None and row["peak_rss_mb"] is None
+    assert row["notes"] == ["skipped: ../shared/data absent"]
