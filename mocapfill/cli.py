@@ -793,8 +793,8 @@ def _check_written(*paths: Path | None) -> None:
               help="Comma-separated methods (default: all but svt, which takes minutes).")
 @click.option("--json", "json_path", type=_OutputFile(), default=None,
               help="Also write the rows to FILE.json.")
-@click.option("--plots", "plots_dir", type=click.Path(path_type=Path, file_okay=False),
-              default=None, help="Write bar charts into DIR (needs matplotlib).")
+@click.option("--plots", "plots_dir", type=_OutputFolder(), default=None,
+              help="Write bar charts into DIR (needs matplotlib).")
 def bench_accuracy(quick: bool, methods: str | None, json_path: Path | None,
                    plots_dir: Path | None) -> None:
     """Every method on the shared data with fixed seeds: the Gløersen-Federolf walking
@@ -819,8 +819,8 @@ def bench_accuracy(quick: bool, methods: str | None, json_path: Path | None,
 
 
 @bench.command("paper")
-@click.option("--plots", "plots_dir", type=click.Path(path_type=Path, file_okay=False),
-              default=None, help="Write one PNG per figure into DIR (needs matplotlib).")
+@click.option("--plots", "plots_dir", type=_OutputFolder(), default=None,
+              help="Write one PNG per figure into DIR (needs matplotlib).")
 @click.option("--quick", is_flag=True,
               help="A small grid and one seed (about a minute) instead of the full run "
                    "(about 20 minutes on 2 cores).")

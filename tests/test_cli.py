@@ -859,6 +859,24 @@ def test_bench_output_files_are_checked_before_the_run(tmp_path, monkeypatch):
     assert ran == []
 
 
+def test_bench_plots_folder_named_empty_is_refused_before_the_run(tmp_path, monkeypatch):
+    # `--plots ''` was read as '.', so the whole run started, to draw into the current
+    # folder; as -o '' of repair it is a usage error, before any work.
+    import mocapfill.bench
+    import mocapfill.bench_paper
+
+    ran = []
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(mocapfill.bench, "run_accuracy", lambda *a, **k: ran.append(1) or [])
+    monkeypatch.setattr(mocapfill.bench_paper, "run_paper", lambda *a, **k: ran.append(1))
+    for args in (["accuracy", "--quick", "--methods", "linear"], ["paper", "--quick"]):
+        result = CliRunner().invoke(main, ["bench", *args, "--plots", ""])
+        assert result.exit_code == 2, result.output
+        assert "the path is empty: name a folder" in result.stderr
+        assert len(result.stderr.strip().splitlines()) == 1
+    assert ran == [] and list(tmp_path.iterdir()) == []
+
+
 def test_simulate_names_a_skeleton_file_with_nothing_to_remove_in_channel_space_too(tmp_path):
     # "123: one line on stderr names it and why": the channel-space proxy clip had no
     # path, so the BVH → BVH error did not say which file had nothing to remove.
