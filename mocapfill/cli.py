@@ -813,9 +813,20 @@ def bench_accuracy(quick: bool, methods: str | None, json_path: Path | None,
         raise ParameterError(f"unknown method(s) {', '.join(unknown)}" if unknown
                              else f"--methods {methods!r} names no method")
     if plots_dir is not None:
+        _require_matplotlib("--plots")      # now, not after the run
         plots_dir.mkdir(parents=True, exist_ok=True)
     rows = run_accuracy(quick, chosen, json_path=json_path, plots_dir=plots_dir)
     click.echo(format_table(rows))
+
+
+def _require_matplotlib(option: str) -> None:
+    from .errors import ParameterError
+
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise ParameterError(f"{option} needs matplotlib: pip install 'mocapfill[plot]'") \
+            from None
 
 
 @bench.command("paper")

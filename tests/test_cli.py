@@ -877,6 +877,23 @@ def test_bench_plots_folder_named_empty_is_refused_before_the_run(tmp_path, monk
     assert ran == [] and list(tmp_path.iterdir()) == []
 
 
+def test_bench_accuracy_plots_without_matplotlib_is_refused_before_the_run(tmp_path,
+                                                                            monkeypatch):
+    # The charts were drawn after the whole run: without matplotlib, an ImportError's
+    # traceback (exit 1) at the end, and no table printed.
+    import mocapfill.bench
+
+    ran = []
+    monkeypatch.setitem(sys.modules, "matplotlib", None)        # import raises ImportError
+    monkeypatch.setattr(mocapfill.bench, "run_accuracy", lambda *a, **k: ran.append(1) or [])
+    result = CliRunner().invoke(main, ["bench", "accuracy", "--quick", "--methods", "linear",
+                                       "--plots", str(tmp_path / "charts")])
+    assert result.exit_code == 2, result.output
+    assert "--plots needs matplotlib: pip install 'mocapfill[plot]'" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert ran == [] and not (tmp_path / "charts").exists()
+
+
 def test_simulate_names_a_skeleton_file_with_nothing_to_remove_in_channel_space_too(tmp_path):
     # "123: one line on stderr names it and why": the channel-space proxy clip had no
     # path, so the BVH → BVH error did not say which file had nothing to remove.
