@@ -805,7 +805,7 @@ def bench_accuracy(quick: bool, methods: str | None, json_path: Path | None,
     _check_written(json_path)
     chosen = (["trnn", "trnn-lowrank", "trnn-paper", "pca", "gaussian", "spline", "pchip",
                "linear", "tsmc", "ialm", "psvt"] if methods is None
-              else [m.strip() for m in methods.split(",") if m.strip()])
+              else list(dict.fromkeys(m.strip() for m in methods.split(",") if m.strip())))
     unknown = sorted(set(chosen) - set(METHOD_NAMES))
     if unknown or not chosen:   # '' or ' , ' chose nothing: refuse it, not an empty table
         from .errors import ParameterError

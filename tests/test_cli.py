@@ -894,6 +894,20 @@ def test_bench_accuracy_plots_without_matplotlib_is_refused_before_the_run(tmp_p
     assert ran == [] and not (tmp_path / "charts").exists()
 
 
+def test_bench_accuracy_runs_a_method_named_twice_once(monkeypatch):
+    # `--methods linear,spline,linear` ran linear twice on every case: its rows twice in
+    # --json, and its table cell the mean of both runs (timings of two runs).
+    import mocapfill.bench
+
+    asked = []
+    monkeypatch.setattr(mocapfill.bench, "run_accuracy",
+                        lambda quick, methods, **k: asked.append(methods) or [])
+    result = CliRunner().invoke(main, ["bench", "accuracy", "--quick", "--methods",
+                                       "linear, spline,linear"])
+    assert result.exit_code == 0, result.output
+    assert asked == [["linear", "spline"]]
+
+
 def test_simulate_names_a_skeleton_file_with_nothing_to_remove_in_channel_space_too(tmp_path):
     # "123: one line on stderr names it and why": the channel-space proxy clip had no
     # path, so the BVH → BVH error did not say which file had nothing to remove.
