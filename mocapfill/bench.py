@@ -66,6 +66,10 @@ class Case:
 def _walkl_motion(path: Path) -> Motion:
     from scipy.io import loadmat
 
+    from .errors import FormatError
+
+    if not path.is_file():      # loadmat's "Reader needs file name or open file-like object"
+        raise FormatError(path, "no such file")
     data = np.asarray(loadmat(path)["data"], dtype=np.float64)       # frames × (3·markers)
     positions = data.reshape(data.shape[0], -1, 3)
     labels = tuple(f"M{j + 1:02d}" for j in range(positions.shape[1]))

@@ -29,6 +29,16 @@ def test_missing_data_becomes_a_row_note_not_an_error(monkeypatch, tmp_path):
     assert "skipped" in bench.format_table(rows)
 
 
+def test_a_missing_walkl_file_is_named_in_the_skip_note(monkeypatch, tmp_path):
+    # scipy's loadmat of an absent file said "OSError: Reader needs file name or open
+    # file-like object": neither which file nor why. As the CMU cases say it.
+    (tmp_path / "walkl").mkdir()
+    monkeypatch.setattr(bench, "SHARED_DATA", tmp_path)
+    case = next(c for c in bench.cases(quick=True) if c.dataset == "walkl")
+    note = bench.run_case(case, ["linear"])[0]["note"]
+    assert note == f"skipped: FormatError: {tmp_path / 'walkl' / 'WalkL.mat'}: no such file"
+
+
 def test_quick_subset_is_small():
     assert len(bench.cases(quick=True)) <= 4
 
