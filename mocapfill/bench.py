@@ -283,6 +283,8 @@ def plot_summary(summary: list[dict], folder: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from .formats import atomic_output
+
     folder.mkdir(parents=True, exist_ok=True)
     written = []
     for dataset in dict.fromkeys(r["dataset"] for r in summary):
@@ -305,7 +307,10 @@ def plot_summary(summary: list[dict], folder: Path) -> list[Path]:
         ax.legend(fontsize="small", ncol=2)
         fig.tight_layout()
         path = folder / f"accuracy-{dataset}.png"
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
+        try:
+            with atomic_output(path) as tmp:    # never half a chart (a full disk, Ctrl-C)
+                fig.savefig(tmp, dpi=120, format="png")
+        finally:
+            plt.close(fig)
         written.append(path)
     return written

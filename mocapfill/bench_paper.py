@@ -674,6 +674,8 @@ def write_plots(results: PaperResults, plots_dir: Path) -> list[Path]:
         results.note("plots", "matplotlib is not installed (pip install mocapfill[plot]): "
                               "tables only, no plots")
         return []
+    from .formats import atomic_output
+
     plots_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for name, draw, present in (
@@ -688,8 +690,11 @@ def write_plots(results: PaperResults, plots_dir: Path) -> list[Path]:
             continue
         figure = draw()
         path = plots_dir / name
-        figure.savefig(path, dpi=PLOT_DPI)
-        plt.close(figure)
+        try:
+            with atomic_output(path) as tmp:    # never half a chart (a full disk, Ctrl-C)
+                figure.savefig(tmp, dpi=PLOT_DPI, format="png")
+        finally:
+            plt.close(figure)
         written.append(path)
     return written
 

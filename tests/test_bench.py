@@ -1,6 +1,8 @@
 """The accuracy benchmark: table rendering and clean skips without data."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from mocapfill import bench
@@ -37,6 +39,36 @@ def test_a_missing_walkl_file_is_named_in_the_skip_note(monkeypatch, tmp_path):
     case = next(c for c in bench.cases(quick=True) if c.dataset == "walkl")
     note = bench.run_case(case, ["linear"])[0]["note"]
     assert note == f"skipped: FormatError: {tmp_path / 'walkl' / 'WalkL.mat'}: no such file"
+
+
+def test_a_chart_whose_write_fails_leaves_no_half_written_file(monkeypatch, tmp_path):
+    # The charts were saved under their own names: a write that failed (a full disk,
+    # Ctrl-C) left half a PNG where a previous run's chart had been.
+    import pytest
+
+    pytest.importorskip("matplotlib")
+    from matplotlib.figure import Figure
+
+    from mocapfill import bench_paper
+
+    def failing(self, fname, *args, **kwargs):
+        Path(fname).write_bytes(b"\x89PNG half")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(Figure, "savefig", failing)
+    (tmp_path / "accuracy-cmu.png").write_bytes(b"previous chart")
+    summary = bench.summarise([_row("85_02 ml=40", "linear", 2.0)])
+    with pytest.raises(OSError):
+        bench.plot_summary(summary, tmp_path)
+    setup = bench_paper.Setup("mocapfill bench paper", "today", "box", "cpu", 2, "3", "2",
+                              "1", "0.0", "x")
+    results = bench_paper.PaperResults(bench_paper.PaperConfig.quick(), setup)
+    results.ranks.append(object())
+    monkeypatch.setattr(bench_paper, "_plot_ranks", lambda plt, results: plt.figure())
+    with pytest.raises(OSError):
+        bench_paper.write_plots(results, tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["accuracy-cmu.png"]
+    assert (tmp_path / "accuracy-cmu.png").read_bytes() == b"previous chart"
 
 
 def test_quick_subset_is_small():
