@@ -448,7 +448,10 @@ def read(path: Path, *, zero_is_missing: str = "auto") -> Motion:
     fillable = ~_model_outputs(point, labels, n_points)
     if zero_is_missing == "auto":
         company = " ".join(_strings(layout.params.get("MANUFACTURER", {}).get("COMPANY")))
-        signature = fourth == QUALISYS_GAP_WORD       # cheap test first; zeros only if needed
+        # Cheap test first; zeros only if needed. An int16 word cannot hold 65535, and
+        # numpy 2.0-2.2.1 crash (SIGSEGV) comparing a strided int16 array with it.
+        signature = (fourth == QUALISYS_GAP_WORD if layout.is_float
+                     else np.zeros(fourth.shape, bool))
         qtm_gaps = signature.any() and (signature & (coords == 0).all(axis=2)).any()
         zero_is_missing = "on" if "qualisys" in company.lower() or qtm_gaps else "off"
     if zero_is_missing == "on":  # model outputs (an angle, a power) may well be exactly 0
