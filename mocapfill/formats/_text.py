@@ -273,6 +273,32 @@ def find_cut_row(lines: Sequence[str], row_lines: np.ndarray, delimiter: str,
     return -1 if printed_whole(text, column, row) else index
 
 
+def finite_number(token: str) -> bool:
+    """Whether a token reads as a finite number."""
+    try:
+        return bool(np.isfinite(float(token)))
+    except ValueError:
+        return False
+
+
+def last_value_cut(text: str, column: Sequence[str], row: Sequence[str], *,
+                   alone: bool = True) -> bool:
+    """Whether ``text``, a value a file ends right after (an AMC's or a BVH's last), looks
+    cut short: not a number (``1e``), or a finite one not :func:`printed_whole` beside
+    ``column`` and ``row``. ``nan`` is missing whether cut or not, and ``inf`` is refused
+    by the readers anyway: neither looks cut. ``alone`` is the answer for a finite number
+    with an empty ``column`` (nothing to compare it with)."""
+    try:
+        value = float(text)
+    except ValueError:
+        return True
+    if not np.isfinite(value):
+        return False
+    if not column:
+        return alone
+    return not printed_whole(text, column, row)
+
+
 def printed_whole(text: str, column: Sequence[str], row: Sequence[str]) -> bool:
     """Whether ``text``, a number a file ends right after, is printed as precisely as the
     numbers around it, so that it reads as whole rather than as cut short.

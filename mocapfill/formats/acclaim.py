@@ -81,7 +81,7 @@ from ..skeleton import (
     positions_edited,
 )
 from . import skeleton_input_needed
-from ._text import LATIN1_BOM, frame_steps_notes, latin1_label, printed_whole
+from ._text import LATIN1_BOM, finite_number, frame_steps_notes, last_value_cut, latin1_label
 
 INCH_IN = {"in": 1.0, "mm": 25.4, "cm": 2.54, "m": 0.0254}
 NOT_DOF_CHANNELS = ("tx", "ty", "tz", "l")
@@ -499,30 +499,16 @@ def _looks_cut(lines: tuple[str, ...], tokens: list[str], last_cut: bool, n_colu
         return True
     if not last_cut:
         return False
-    text = tokens[-1]
-    try:
-        value = float(text)
-    except ValueError:
-        return True
-    if not np.isfinite(value):
-        return False        # nan is missing whether cut or not; inf is refused anyway
     column = [t for t in (_value_token(lines[k], n_columns) for k in earlier if k >= 0)
               if t is not None]
-    row = [t for t in tokens[1:-1] if _is_finite(t)]
-    return not printed_whole(text, column, row)
+    row = [t for t in tokens[1:-1] if finite_number(t)]
+    return last_value_cut(tokens[-1], column, row)
 
 
 def _value_token(line: str, k: int) -> str | None:
     """The ``k``-th token of a bone line (its name is token 0) when it is a finite number."""
     tokens = line.split("#", 1)[0].split()
-    return tokens[k] if k < len(tokens) and _is_finite(tokens[k]) else None
-
-
-def _is_finite(token: str) -> bool:
-    try:
-        return bool(np.isfinite(float(token)))
-    except ValueError:
-        return False
+    return tokens[k] if k < len(tokens) and finite_number(tokens[k]) else None
 
 
 def _units(asf: _Asf, units: str | None) -> tuple[float, str]:

@@ -55,7 +55,7 @@ from ..errors import FormatError
 from ..motion import Motion
 from ..skeleton import ChannelState, Skeleton, motion_with_channels, patch_tokens, positions_edited
 from . import skeleton_input_needed
-from ._text import LATIN1_BOM, latin1_label, printed_whole
+from ._text import LATIN1_BOM, finite_number, last_value_cut, latin1_label
 
 _TOKEN = re.compile(r"\S+")
 _DECIMALS = re.compile(r"\.(\d+)")
@@ -221,13 +221,6 @@ def _file_decimals(frame_text: list[str]) -> int:
     return min(max(found, 4), 10)
 
 
-def _is_finite(token: str) -> bool:
-    try:
-        return bool(np.isfinite(float(token)))
-    except ValueError:
-        return False
-
-
 def _last_value_cut(lines: tuple[str, ...], frame_lines: list[int], rows: list[list[str]],
                     tree: _Hierarchy) -> bool:
     """Whether the file ends inside the last value of its last frame line and that value
@@ -236,22 +229,14 @@ def _last_value_cut(lines: tuple[str, ...], frame_lines: list[int], rows: list[l
     line = lines[index]
     if index != len(lines) - 1 or line.endswith(("\n", "\r")) or line[-1].isspace():
         return False
-    text = rows[-1][-1]
-    try:
-        value = float(text)
-    except ValueError:
-        return True
-    if not np.isfinite(value):
-        return False            # nan is missing whether cut or not; inf is refused anyway
     last = len(rows[-1]) - 1
-    column = [row[last] for row in rows[:-1] if _is_finite(row[last])]
-    if not column:
-        return False            # nothing to compare with (one frame): read as written
+    column = [row[last] for row in rows[:-1] if finite_number(row[last])]
     joint = next(rotation + translation for rotation, translation
                  in zip(tree.rotation_columns, tree.translation_columns)
                  if last in rotation + translation)
-    row = [rows[-1][c] for c in joint if c != last and _is_finite(rows[-1][c])]
-    return not printed_whole(text, column, row)
+    row = [rows[-1][c] for c in joint if c != last and finite_number(rows[-1][c])]
+    # With nothing to compare it with (one frame), a number is read as written.
+    return last_value_cut(rows[-1][-1], column, row, alone=False)
 
 
 def _read_source(path: Path, scale: float) -> tuple[BvhSource, float]:
