@@ -16,7 +16,7 @@ them rows centred and scaled to unit RMS (see ``mocapfill.pipeline``).
 from __future__ import annotations
 
 import importlib
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -24,7 +24,7 @@ sharing the times, such as a marker's x, y, z) and returns a function of times i
 """
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -26,8 +26,8 @@ import pickle
 import queue
 import sys
 import threading
-from collections.abc import Iterator, Mapping, Sequence
-from typing import Callable, TypeVar
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from typing import TypeVar
 
 from .._blas import single_threaded
 from .._blas import threads_now as blas_threads_now
