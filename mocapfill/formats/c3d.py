@@ -687,6 +687,9 @@ def _new_file(motion: Motion) -> bytes:
     frames[:, :, :3] = np.where(motion.observed[:, :, None], motion.positions, 0.0)
     frames[:, :, 3] = np.where(motion.observed, 0.0, -1.0)
     body = frames.tobytes()
-    body += b"\0" * (-len(body) % 512)
+    if n_frames < 0xFFFF:
+        body += b"\0" * (-len(body) % 512)
+    # else no padding: POINT:FRAMES then holds 65535 (-1 as the int16 it is), which ezc3d
+    # takes as "count to the end of the file", so padding would read as frames at (0, 0, 0)
     return bytes(header) + section + body
 

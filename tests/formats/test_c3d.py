@@ -509,6 +509,17 @@ def test_new_file_past_65535_frames_keeps_every_frame(tmp_path):
     np.testing.assert_array_equal(back.positions, positions)
 
 
+@pytest.mark.parametrize("n_frames", [65_535, 65_537])
+def test_new_file_of_65535_frames_or_more_reads_no_extra_frames_in_ezc3d(tmp_path, n_frames):
+    # POINT:FRAMES holds 65535 (-1 as an int16) there: ezc3d then reads frames up to the
+    # end of the file, so block padding after the last frame came back as frames at 0, 0, 0.
+    positions = np.full((n_frames, 2, 3), 5.0)
+    out = tmp_path / "long.c3d"
+    c3d.write(Motion(positions, np.ones((n_frames, 2), bool), ("A", "B"), 100.0), out)
+    assert ezc3d_points(out).shape[0] == n_frames
+    assert c3d.read(out).n_frames == n_frames
+
+
 @pytest.mark.filterwarnings("ignore:No analog data found")
 def test_new_file_reads_in_py_c3d(tmp_path):
     py_c3d = pytest.importorskip("c3d")
