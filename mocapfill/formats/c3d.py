@@ -632,6 +632,10 @@ def _new_file(motion: Motion) -> bytes:
     if n_markers > 0xFFFF:
         raise FormatError(None, f"{n_markers} markers do not fit one C3D file (65535 at most)")
     finite = np.abs(motion.positions[motion.observed])
+    if finite.size and finite.max() > np.finfo(np.float32).max:
+        # float32 would store inf, which every reader takes as a gap: refused, not lost
+        raise FormatError(None, f"a value ({float(finite.max()):g}) overflows the float32 "
+                                "range of a C3D file (3.4e38 at most)")
     scale = -(float(finite.max()) / 32000 if finite.size and finite.max() > 0 else 1.0)
     # Frame numbers past 65535 live in TRIAL:ACTUAL_START_FIELD / ACTUAL_END_FIELD (two
     # 16-bit words each); the header's 16-bit words then hold 65535.

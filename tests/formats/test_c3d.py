@@ -476,6 +476,17 @@ def test_new_file_reads_the_same_in_ezc3d(tmp_path, n_markers):
     assert tuple(listed) == motion.labels
 
 
+def test_new_file_refuses_a_value_past_the_float32_range(tmp_path):
+    # float32 would store it as inf, which reads back as a gap: the value would be lost.
+    motion = in_memory_motion()
+    positions = motion.positions.copy()
+    positions[2, 1, 0] = 1e39
+    out = tmp_path / "huge.c3d"
+    with pytest.raises(FormatError, match=r"\(1e\+39\) overflows the float32 range"):
+        c3d.write(motion.with_positions(positions, motion.observed), out)
+    assert not out.exists()
+
+
 def test_new_file_splits_long_labels_so_each_entry_fits_its_16_bit_offset(tmp_path):
     # 255 labels padded to a 170-byte one would be 43350 bytes: more than an entry holds.
     labels = [f"M{j}" for j in range(300)]
