@@ -684,7 +684,9 @@ def _new_file(motion: Motion) -> bytes:
     header = bytearray(512)
     struct.pack_into("<BBHHHHHfHHf", header, 0, 2, 0x50, n_markers, 0,
                      min(first_frame, 0xFFFF), min(last_frame, 0xFFFF), 0, scale, data_block,
-                     1, motion.rate)
+                     # analog samples per frame: ANALOG:RATE / POINT:RATE, 0 for a 0 Hz clip
+                     # (py-c3d refuses a file where they disagree)
+                     1 if motion.rate > 0 else 0, motion.rate)
     struct.pack_into("<H", header, 298, 0x3039)                  # 4-character event labels
 
     frames = np.zeros((n_frames, n_markers, 4), "<f4")

@@ -541,6 +541,21 @@ def test_new_file_reads_in_py_c3d(tmp_path):
     assert len(frames) == 30 and frames[5][0, 3] == -1 and frames[0][0, 3] == 0
 
 
+@pytest.mark.filterwarnings("ignore:No analog data found")
+def test_new_file_of_a_clip_without_a_rate_reads_in_py_c3d_and_ezc3d(tmp_path):
+    # A 0 Hz clip (no rate known): the header's analog samples per frame must be 0 too,
+    # or py-c3d refuses to open the file ("inconsistent analog rate"). (Its read_frames
+    # divides by the rate, so it reads no 0 Hz file's frames, ours or any other.)
+    py_c3d = pytest.importorskip("c3d")
+    motion = in_memory_motion().replace(rate=0.0)
+    out = tmp_path / "no_rate.c3d"
+    c3d.write(motion, out)
+    with open(out, "rb") as handle:
+        assert py_c3d.Reader(handle).frame_count == 30
+    assert ezc3d_points(out).shape[0] == 30
+    assert c3d.read(out).rate == 0.0
+
+
 # --------------------------------------------------------------------------- real files
 
 QUICK = ["c3d/btk-sample01__Eb015pr.c3d", "c3d/btk-sample02__DEC_INT.C3D",
