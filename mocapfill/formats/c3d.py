@@ -368,8 +368,7 @@ def _labels(point: dict[str, _Param], n_points: int) -> list[str]:
     while f"LABELS{extra}" in point:
         names += _strings(point[f"LABELS{extra}"])
         extra += 1
-    names = names[:n_points] + [""] * max(n_points - len(names), 0)
-    return unique_labels([name or f"POINT{i + 1}" for i, name in enumerate(names)])
+    return _named(names[:n_points] + [""] * max(n_points - len(names), 0))
 
 
 def _model_outputs(point: dict[str, _Param], labels: list[str], n_points: int) -> np.ndarray:
@@ -615,6 +614,21 @@ def _label_chunks(labels: list[str]) -> list[list[str]]:
     return chunks
 
 
+NEW_FILE_NAMES = "names a C3D reads back"
+
+
+def new_file_names(labels: list[str] | tuple[str, ...]) -> list[str]:
+    """The POINT:LABELS of a new C3D: the names :func:`read` gives back (padding spaces
+    stripped, ``POINT{n}`` for an empty label, repeats numbered), so a clip written and
+    read again keeps the names, and a note tells of any change."""
+    return _named([str(label).replace("\x00", " ").strip() for label in labels])
+
+
+def _named(names: list[str]) -> list[str]:
+    """Empty names as ``POINT{n}``, repeats numbered (what :func:`read` gives)."""
+    return unique_labels([name or f"POINT{i + 1}" for i, name in enumerate(names)])
+
+
 def stores_first_frame(motion: Motion) -> bool:
     """Whether a new C3D can hold the clip's first frame number (TRIAL:ACTUAL_START_FIELD
     and ACTUAL_END_FIELD: unsigned 32-bit frame numbers); one that cannot is written as 1."""
@@ -641,7 +655,7 @@ def _new_file(motion: Motion) -> bytes:
     # 16-bit words each); the header's 16-bit words then hold 65535.
     first_frame = motion.first_frame if stores_first_frame(motion) else 1
     last_frame = first_frame + n_frames - 1
-    labels = list(motion.labels)
+    labels = new_file_names(motion.labels)
     chunks = _label_chunks(labels)
 
     params = [_group_entry(1, "POINT"),

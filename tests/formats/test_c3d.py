@@ -487,6 +487,21 @@ def test_new_file_refuses_a_value_past_the_float32_range(tmp_path):
     assert not out.exists()
 
 
+def test_new_file_writes_the_names_it_reads_back_with_a_note(tmp_path):
+    # Empty, repeated and space-padded labels come back renamed from any C3D; a new file
+    # holds those names already, and the note says so, as for a TRC or a CSV.
+    motion = in_memory_motion(n_markers=5).replace(labels=("", "LASI", "LASI", " RASI ",
+                                                           "POINT1"))
+    out = tmp_path / "names.c3d"
+    notes = formats.write(motion, out)
+    expected = ("POINT1", "LASI", "LASI_2", "RASI", "POINT1_2")
+    assert c3d.read(out).labels == expected
+    assert tuple(pytest.importorskip("ezc3d").c3d(str(out))["parameters"]["POINT"]["LABELS"]
+                 ["value"]) == expected
+    assert notes == ("4 marker name(s) written as names a C3D reads back: '' -> 'POINT1', "
+                     "'LASI' -> 'LASI_2', ...",)
+
+
 def test_new_file_splits_long_labels_so_each_entry_fits_its_16_bit_offset(tmp_path):
     # 255 labels padded to a 170-byte one would be 43350 bytes: more than an entry holds.
     labels = [f"M{j}" for j in range(300)]
