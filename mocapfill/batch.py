@@ -375,23 +375,55 @@ def plan(paths: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None =
 # ---------------------------------------------------------------- one file
 
 
-def _write_in_place(motion, path: Path) -> tuple[str, ...]:
+def _write_in_place(motion, path: Path, read_as: tuple[int, int, int] | None = None
+                    ) -> tuple[str, ...]:
     """Replace ``path`` atomically: write a sibling temp file with the same suffix (through
     ``formats.write``, itself atomic), keep the input's permissions, rename it over. A
     symbolic link is followed: its target is replaced and the link kept (renaming over the
-    link would have replaced it by a plain file and left the target unrepaired)."""
+    link would have replaced it by a plain file and left the target unrepaired). With
+    ``read_as`` (:func:`_state` when the file was read), a file changed since is left as it
+    is: its new content would be lost under the repair of the old."""
     from . import formats
 
     given, path = path, _real(path)
     with formats.atomic_output(path, suffix=f".inplace{path.suffix}", mode_from=path) as tmp:
         try:
-            return formats.write(motion, tmp, final_path=path)
+            notes = formats.write(motion, tmp, final_path=path)
         except FormatError as exc:
             if exc.path != tmp:
                 raise
             # It names the temporary file formats.write was given (a full disk while
             # writing it); the user knows the file they repair.
             raise FormatError(given, exc.problem, exit_code=exc.exit_code) from None
+        if read_as is not None and _state(path) != read_as:
+            raise FormatError(given, CHANGED_WHILE_REPAIRED + "; left as it is")
+        return notes
+
+
+# What a batch says of an input that changed between its reading and its output's writing
+# (a file still being copied in, edited meanwhile).
+CHANGED_WHILE_REPAIRED = "changed while it was repaired"
+
+
+def _state(path: Path) -> tuple[int, int, int] | None:
+    """(modification time, size, inode) of a file, or None where it cannot be read."""
+    try:
+        info = os.stat(path)
+    except OSError:
+        return None
+    return info.st_mtime_ns, info.st_size, info.st_ino
+
+
+def _not_newer_than_input(output: Path, source: Path) -> bool:
+    """Where the input changed after it was read, give the output the input's time, so
+    that it is not newer (:func:`_is_up_to_date`) and the next run redoes it; whether it
+    did."""
+    try:
+        info = os.stat(source)
+        os.utime(output, ns=(info.st_atime_ns, info.st_mtime_ns))
+    except OSError:
+        return False
+    return True
 
 
 def _temp_patterns(output: Path) -> list[str]:
@@ -464,6 +496,7 @@ def repair_file(job: FileJob) -> FileRecord:
     if problem is not None:         # known before reading: no solve thrown away
         return record(FAILED, problem)
     try:
+        read_as = _state(job.input)
         motion = _read(job)
         frames = motion.n_frames
         read_notes = reader_notes(motion)       # as `repair IN OUT` prints them
@@ -478,13 +511,17 @@ def repair_file(job: FileJob) -> FileRecord:
         job.output.parent.mkdir(parents=True, exist_ok=True)
         # The notes of the output's format (model outputs left out of a TRC, lengths
         # converted to mm) go in the record, as `repair IN OUT` prints them.
+        if result.filled and job.in_place:
+            notes = _write_in_place(result.motion, job.output, read_as)
+        else:
+            notes = () if job.in_place else formats.write(result.motion, job.output)
+        if (not job.in_place and _state(job.input) != read_as
+                and _not_newer_than_input(job.output, job.input)):
+            # The output repairs what was read: written, and redone by the next run.
+            notes += (f"{CHANGED_WHILE_REPAIRED}: the output repairs the content read, and "
+                      "the next run redoes it",)
         if result.filled:
-            if job.in_place:
-                notes = _write_in_place(result.motion, job.output)
-            else:
-                notes = formats.write(result.motion, job.output)
             return record(REPAIRED, _not_filled(result), result.filled, result.left, notes)
-        notes = () if job.in_place else formats.write(result.motion, job.output)
         reason = f"no gap filled ({_not_filled(result)})" if result.gaps else "no gaps"
         return record(UNCHANGED, reason, 0, result.left, notes)
     except FormatError as exc:

@@ -437,6 +437,47 @@ def test_a_report_that_cannot_be_written_still_leaves_the_summary_line(tmp_path,
     assert "No space left on device" in lines[-1] and len(lines) == 2, lines
 
 
+@pytest.mark.parametrize("in_place", [False, True])
+def test_an_input_changed_while_it_was_repaired_is_redone_or_left_as_it_is(tmp_path,
+                                                                          monkeypatch,
+                                                                          in_place):
+    # A file still being copied in (or edited) while the batch repairs it: its output was
+    # newer than the input, so every rerun skipped it; in place, the repair of the old
+    # content replaced the new.
+    from mocapfill import pipeline
+
+    folder = tmp_path / "in"
+    folder.mkdir()
+    path = folder / "x.trc"
+    formats.write(with_gap(smooth_clip(60, 3), 1, 20, 30), path)
+    real_repair = pipeline.repair
+
+    def repair_while_it_changes(motion, options=None):
+        with open(path, "a") as f:
+            f.write("\n")                          # the file grows meanwhile
+        os.utime(path, ns=(time.time_ns(), time.time_ns() + 10**9))
+        return real_repair(motion, options)
+
+    monkeypatch.setattr(pipeline, "repair", repair_while_it_changes)
+    changed = path.read_bytes()
+    args = ["--in-place"] if in_place else ["-o", tmp_path / "out"]
+    report_path = tmp_path / "r.json"
+    result = run(folder, *args, "-j", "1", "--report", report_path, *LINEAR)
+    record, = _report(report_path)["files"]
+    if in_place:
+        assert result.exit_code == 123, result.output
+        assert record["status"] == "failed"
+        assert "changed while it was repaired; left as it is" in record["reason"]
+        assert path.read_bytes() == changed + b"\n"      # the new content, untouched
+    else:
+        assert result.exit_code == 0, result.output
+        assert record["status"] == "repaired"
+        assert any("changed while it was repaired" in note for note in record["notes"])
+        out = tmp_path / "out" / "x.trc"
+        assert formats.read(out).observed.all()
+        assert not batch._is_up_to_date(path, out)          # the next run redoes it
+
+
 @pytest.mark.parametrize("address", ["garbage", ""])
 def test_a_malformed_scheduler_address_is_a_usage_error_not_a_traceback(tmp_path,
                                                                        monkeypatch, address):
