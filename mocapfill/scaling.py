@@ -30,9 +30,13 @@ class UnitScale:
         largest = float(np.abs(matrix, where=observed, out=np.zeros(matrix.shape)).max(
             initial=0.0))
         unit = math.ldexp(1.0, math.frexp(largest)[1]) if 0.0 < largest < np.inf else 1.0
-        sums = np.where(observed, matrix / unit, 0.0).sum(axis=1, keepdims=True)
+        # Observed entries only: a missing one may hold anything, which a small unit
+        # would overflow (with a warning, though the value is then dropped).
+        sums = np.divide(matrix, unit, out=np.zeros(matrix.shape), where=observed).sum(
+            axis=1, keepdims=True)
         centre = np.divide(sums, counts, out=np.zeros_like(sums), where=counts > 0) * unit
-        centred = np.where(observed, (matrix - centre) / unit, 0.0)
+        centred = np.subtract(matrix, centre, out=np.zeros(matrix.shape), where=observed)
+        centred /= unit
         n_obs = int(observed.sum())
         rms = float(np.sqrt((centred ** 2).sum() / n_obs)) * unit if n_obs else 0.0
         return cls(centre=centre, scale=rms if rms > 0 else 1.0)

@@ -70,6 +70,23 @@ def test_coordinates_too_large_to_square_are_repaired_as_any_others(method):
     np.testing.assert_array_equal(scaled.motion.positions, mm.motion.positions * factor)
 
 
+def test_the_unit_scale_reads_observed_entries_only():
+    # A missing entry may hold anything: divided by the unit of tiny observed values it
+    # overflowed, with a warning (a property test's clip), though the value was dropped.
+    import warnings
+
+    from mocapfill.scaling import UnitScale
+
+    matrix = np.full((3, 4), 1e300)
+    matrix[:, 0] = [1e-310, 2e-310, 3e-310]
+    observed = np.zeros((3, 4), bool)
+    observed[:, 0] = True
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        scale = UnitScale.fit(matrix, observed)
+    np.testing.assert_array_equal(scale.centre[:, 0], matrix[:, 0])
+
+
 def test_marker_missing_for_the_whole_clip_is_left_missing_and_reported():
     _, gapped = gapped_clip()
     gapped = with_gap(gapped, 9, 0, gapped.n_frames)
