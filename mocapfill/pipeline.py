@@ -105,8 +105,7 @@ class RepairOptions:
             # A count, as --rank and --max-iter are: 2.5 acted as 2 (a gap's length in
             # frames is whole), nan and inf as no limit, a string as a TypeError.
             gap_frames = self.max_gap_frames
-            if (isinstance(gap_frames, bool) or not isinstance(gap_frames, Real)
-                    or not float(gap_frames).is_integer()):
+            if not _whole_number(gap_frames):
                 raise ParameterError(f"max gap must be a whole number of frames, got "
                                      f"{gap_frames!r}")
             if gap_frames < 0:
@@ -136,7 +135,14 @@ class RepairOptions:
 # method: checked for callers from Python as for the command line.
 _COUNTS = ("rank", "max_iter")
 _POSITIVE = ("lam", "eta0", "tol", "max_iter", "rank")
-_CHECKED = ("rank", "lam", "mu", "rho", "eta0", "tol", "max_iter")
+_CHECKED = (*_POSITIVE, "mu", "rho")
+
+
+def _whole_number(value: object) -> bool:
+    """Whether a count given from Python is a whole number: 40 or 40.0, not 2.5, nan,
+    inf, True or "40"."""
+    return (not isinstance(value, bool) and isinstance(value, Real)
+            and float(value).is_integer())
 
 
 def check_solver_options(options: dict) -> None:
@@ -151,8 +157,7 @@ def check_solver_options(options: dict) -> None:
 
     for name in _COUNTS:
         value = options.get(name)
-        if value is not None and (isinstance(value, bool) or not isinstance(value, Real)
-                                  or not float(value).is_integer()):
+        if value is not None and not _whole_number(value):
             refuse(name, "a whole number")
     for name in _POSITIVE:
         if options.get(name) is not None and not options[name] > 0:
