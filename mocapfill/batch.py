@@ -372,6 +372,26 @@ def plan(paths: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None =
     return jobs, skipped
 
 
+def _with_gaps_left(record: FileRecord, zero_is_missing: str) -> FileRecord:
+    """A skipped file's record with the gaps its output still has (what a ``--check`` on
+    a resumed batch must see: the run that wrote the output may have left gaps), or
+    failed where the output cannot be read."""
+    from . import formats
+    from .gaps import find_gaps
+
+    output = Path(record.output)
+    extra = {"zero_is_missing": zero_is_missing} if output.suffix.lower() == ".c3d" else {}
+    try:
+        motion = formats.read(output, **extra)
+    except (MocapfillError, OSError) as exc:
+        # The record names the input; the reason names the output it could not read.
+        problem = str(exc) if isinstance(exc, FormatError) else f"{output}: {exc}"
+        return replace(record, status=FAILED,
+                       reason=f"up to date, but its output cannot be read for --check "
+                              f"({problem}); --force redoes it")
+    return replace(record, gaps_left=len(find_gaps(motion)))
+
+
 # ---------------------------------------------------------------- one file
 
 
@@ -785,7 +805,7 @@ def repair_many(paths: Iterable[str | os.PathLike] | str | os.PathLike,
                 jobs: int | None = None, scheduler: str | None = None,
                 in_place: bool = False, force: bool = False, zero_is_missing: str = "auto",
                 max_gap_s: float | None = None, suffix: str | None = None,
-                progress: Progress | None = None) -> BatchReport:
+                progress: Progress | None = None, check: bool = False) -> BatchReport:
     """Repair every motion file under ``paths`` into ``out_dir`` (or in place).
 
     Parameters
@@ -817,6 +837,10 @@ def repair_many(paths: Iterable[str | os.PathLike] | str | os.PathLike,
     progress
         Called as ``progress(done, total, record)``: once with ``(0, total, None)`` before
         the first file, then after each file (skipped files are not counted in ``total``).
+    check
+        Count the gaps left in skipped outputs too (``--check``): each is read, and its
+        record's ``gaps_left`` is the gaps it still has; one that cannot be read is a
+        failure. Without it a skipped output counts no gap.
 
     Returns
     -------
@@ -841,6 +865,8 @@ def repair_many(paths: Iterable[str | os.PathLike] | str | os.PathLike,
                              "(dask worker --nworkers) repair the files")
     todo, skipped = plan(paths, out_dir, options=options, in_place=in_place, force=force,
                          zero_is_missing=zero_is_missing, max_gap_s=max_gap_s, suffix=suffix)
+    if check:
+        skipped = [_with_gaps_left(record, zero_is_missing) for record in skipped]
     finished: list[FileRecord] = []
     report = BatchReport()
 

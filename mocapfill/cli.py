@@ -464,7 +464,8 @@ def _repair_batch(paths, options, *, max_gap_s, out_dir, in_place, force, jobs, 
     try:
         report = repair_many(paths, out_dir, options=options, jobs=jobs, scheduler=scheduler,
                              in_place=in_place, force=force, zero_is_missing=zero_is_missing,
-                             max_gap_s=max_gap_s, suffix=suffix, progress=progress)
+                             max_gap_s=max_gap_s, suffix=suffix, progress=progress,
+                             check=check)
     except BatchInterrupted as exc:
         progress.close()
         _finish_batch(exc.report, report_path)

@@ -228,6 +228,39 @@ def test_check_summary_counts_the_gaps_left_and_records_keep_the_output_formats_
         assert formats.read(record["output"]).n_markers == 3
 
 
+def test_check_on_a_resumed_batch_counts_the_gaps_left_in_skipped_outputs(tmp_path):
+    # The first run leaves the edge gap of each clip (exit 1 under --check); the rerun
+    # skips both outputs as up to date, and exited 0 under --check: it counted no gap in
+    # outputs it did not write. An output that cannot be read is a failure there.
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for i in range(2):
+        formats.write(with_gap(with_gap(smooth_clip(120, 4, seed=i), 0, 0, 5), 1, 40, 50),
+                      folder / f"t{i}.npz")
+        os.utime(folder / f"t{i}.npz", (time.time() - 60,) * 2)
+    out = tmp_path / "out"
+    first = run(folder, "-o", out, "-j", "1", "--check", *LINEAR)
+    assert first.exit_code == 1, first.output
+    report_path = tmp_path / "r.json"
+    again = run(folder, "-o", out, "-j", "1", "--check", "--report", report_path, *LINEAR)
+    assert again.exit_code == 1, again.output
+    assert again.stderr.strip().splitlines()[-1].startswith("0 repaired, 2 skipped, 2 gaps left")
+    records = _report(report_path)["files"]
+    assert [(r["status"], r["gaps_left"]) for r in records] == [("skipped", 1)] * 2
+    # The same counts as the outputs' own gaps, found by reading them.
+    for record in records:
+        assert (~formats.read(record["output"]).observed).any(axis=0).sum() == 1
+    # Without --check a skipped output is not read.
+    (out / "t1.npz").write_bytes(b"PK\x03\x04 not an archive")
+    os.utime(out / "t1.npz")
+    assert run(folder, "-o", out, "-j", "1", *LINEAR).exit_code == 0
+    broken = run(folder, "-o", out, "-j", "1", "--check", "--report", report_path, *LINEAR)
+    assert broken.exit_code == 123, broken.output
+    record = next(r for r in _report(report_path)["files"] if r["input"].endswith("t1.npz"))
+    assert record["status"] == "failed"
+    assert "cannot be read for --check" in record["reason"] and "t1.npz" in record["reason"]
+
+
 def test_records_keep_what_the_reader_worked_around(tmp_path):
     # A TRC whose Frame# column skips numbers: `repair IN OUT` prints the reader's note,
     # and a batch's record keeps it (the gap report's frames are rows, not the file's).
