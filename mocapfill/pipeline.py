@@ -59,7 +59,7 @@ class RepairOptions:
         Completion method name (see ``mocapfill.solvers.METHODS``).
     solver_options
         Keyword arguments for the method (rank, lam, mu, rho, eta0, tol, max_iter, ...).
-        None for one of those seven is the method's default.
+        None for any of them is the method's default.
     max_gap_frames
         Gaps longer than this many frames (a whole number ≥ 0) are left missing; None
         fills every length.
@@ -122,12 +122,12 @@ class RepairOptions:
             given = ", ".join(f"--{name.replace('_', '-')}" for name in unknown)
             raise ParameterError(f"{given} does not apply to method {self.method!r}")
         check_solver_options(self.solver_options)
-        # None for a checked option is the method's default, as on the command line (the
-        # solvers take None for a value); a count given as a whole float (10.0: from
-        # JSON, numpy) is that count (range(10.0) is a TypeError).
-        given = {name: int(value) if name in _COUNTS and value is not None else value
-                 for name, value in self.solver_options.items()
-                 if value is not None or name not in _CHECKED}
+        # None for any option is the method's default, as on the command line: a solver
+        # that takes None for a value has None as its default (tau_factor=None was a
+        # TypeError in the solver); a count given as a whole float (10.0: from JSON,
+        # numpy) is that count (range(10.0) is a TypeError).
+        given = {name: int(value) if name in _COUNTS else value
+                 for name, value in self.solver_options.items() if value is not None}
         object.__setattr__(self, "solver_options", given)
 
 
@@ -135,7 +135,6 @@ class RepairOptions:
 # method: checked for callers from Python as for the command line.
 _COUNTS = ("rank", "max_iter")
 _POSITIVE = ("lam", "eta0", "tol", "max_iter", "rank")
-_CHECKED = (*_POSITIVE, "mu", "rho")
 
 
 def _whole_number(value: object) -> bool:

@@ -10,6 +10,7 @@ from mocapfill.errors import NothingToRepair, ParameterError, SolverError
 from mocapfill.gaps import missing_runs
 from mocapfill.motion import Motion
 from mocapfill.pipeline import RepairOptions, repair
+from mocapfill.solvers import METHODS
 
 from .helpers import smooth_clip, with_gap
 
@@ -225,20 +226,36 @@ def test_a_count_given_as_a_whole_float_is_that_count(method):
                                   gapped.positions[gapped.observed])
 
 
-@pytest.mark.parametrize("method", ["trnn", "trnn-paper", "trnn-lowrank", "gaussian", "svt",
-                                    "tsmc", "ialm", "psvt"])
+@pytest.mark.parametrize("method", sorted(METHODS))
 def test_an_option_given_as_none_is_the_methods_default(method):
     # The range check lets None pass (the default); the solvers took it as a value and
-    # failed with a bare TypeError ('<=' not supported between 'float' and 'NoneType').
+    # failed with a bare TypeError ('<=' not supported between 'float' and 'NoneType'):
+    # the checked options (rank ... max_iter) first, then the library-only ones
+    # (svt's tau_factor, pca's min_cum_sv, ...).
     from mocapfill.solvers import get_method, option_names
 
-    checked = {"rank", "lam", "mu", "rho", "eta0", "tol", "max_iter"}
-    names = option_names(get_method(method)) & checked
+    names = option_names(get_method(method))
     options = RepairOptions(method=method, solver_options=dict.fromkeys(names))
     assert options.solver_options == {}
     _, gapped = gapped_clip()
     np.testing.assert_array_equal(repair(gapped, options).motion.positions,
                                   repair(gapped, RepairOptions(method=method)).motion.positions)
+
+
+def test_no_method_gives_none_a_meaning_of_its_own():
+    # What the test above relies on: an option that takes None has None as its default,
+    # so dropping a None given for it loses nothing.
+    import inspect
+
+    from mocapfill.solvers import get_method
+
+    for method in METHODS:
+        fn = get_method(method)
+        while fn is not None:
+            for p in list(inspect.signature(fn).parameters.values())[2:]:
+                if p.default is not None and p.default is not p.empty:
+                    assert "None" not in str(p.annotation), (method, p.name)
+            fn = getattr(fn, "forwards_to", None)
 
 
 def teleport(matrix, observed, **_):
