@@ -22,7 +22,7 @@ from .errors import NothingToRepair, ParameterError, SolverError, named
 from .gaps import Gap, find_gaps, gap_frames, missing_runs
 from .motion import Motion, finite_samples, label_matches, matches_nothing, require_motion
 from .scaling import UnitScale
-from .solvers import get_method, option_names
+from .solvers import get_method, option_parameters
 from .solvers._threads import in_order, thread_count
 
 ENDS = ("leave", "hold", "extrapolate")
@@ -117,10 +117,12 @@ class RepairOptions:
             raise ParameterError(f"space must be one of {', '.join(SPACES)}, got {self.space!r}")
         # Fail early on an unknown method, or an option the method does not take (batches
         # would otherwise fail file after file).
-        unknown = sorted(set(self.solver_options) - option_names(get_method(self.method)))
+        parameters = option_parameters(get_method(self.method))
+        unknown = sorted(set(self.solver_options) - set(parameters))
         if unknown:
             given = ", ".join(f"--{name.replace('_', '-')}" for name in unknown)
             raise ParameterError(f"{given} does not apply to method {self.method!r}")
+        _check_kinds(self.solver_options, parameters)
         check_solver_options(self.solver_options)
         # None for any option is the method's default, as on the command line: a solver
         # that takes None for a value has None as its default (tau_factor=None was a
@@ -135,6 +137,32 @@ class RepairOptions:
 # method: checked for callers from Python as for the command line.
 _COUNTS = ("rank", "max_iter")
 _POSITIVE = ("lam", "eta0", "tol", "max_iter", "rank")
+
+
+# The kinds of value a solver option may take, by the first type its annotation names
+# ("float | None": a number) or else by its default's type.
+_KINDS = {"int": "a number", "float": "a number", "bool": "True or False", "str": "a name"}
+
+
+def _check_kinds(options: dict, parameters: dict) -> None:
+    """A ParameterError for a solver option from Python whose value is not of its kind:
+    a number (not a string, not True), a flag or a name; None passes (the default).
+    Such values reached the solvers and ended in bare TypeErrors."""
+    for name, value in options.items():
+        parameter = parameters[name]
+        annotation = parameter.annotation
+        if not isinstance(annotation, str):
+            annotation = getattr(annotation, "__name__", "")
+        kind = _KINDS.get(annotation.split("|")[0].strip())
+        if kind is None and parameter.default is not None:
+            kind = _KINDS.get(type(parameter.default).__name__)
+        if value is None or kind is None:
+            continue
+        flag = isinstance(value, (bool, np.bool_))
+        ok = {"a number": isinstance(value, Real) and not flag,
+              "True or False": flag, "a name": isinstance(value, str)}[kind]
+        if not ok:
+            raise ParameterError(f"--{name.replace('_', '-')} must be {kind}, got {value!r}")
 
 
 def _whole_number(value: object) -> bool:

@@ -1,5 +1,6 @@
 import json
 import os
+import re
 import time
 from pathlib import Path
 
@@ -240,6 +241,21 @@ def test_an_option_given_as_none_is_the_methods_default(method):
     _, gapped = gapped_clip()
     np.testing.assert_array_equal(repair(gapped, options).motion.positions,
                                   repair(gapped, RepairOptions(method=method)).motion.positions)
+
+
+@pytest.mark.parametrize(("method", "options", "message"), [
+    ("trnn", {"lam": "0.5"}, "--lam must be a number, got '0.5'"),
+    ("trnn", {"rank": True}, "--rank must be a number, got True"),
+    ("svt", {"tau_factor": "5"}, "--tau-factor must be a number, got '5'"),
+    ("pca", {"min_cum_sv": [0.99]}, "--min-cum-sv must be a number, got [0.99]"),
+    ("pca", {"subtract_mean_trajectory": "no"},
+     "--subtract-mean-trajectory must be True or False, got 'no'"),
+])
+def test_a_solver_option_of_the_wrong_kind_is_refused_by_name(method, options, message):
+    # From Python (JSON configs, notebooks) such values reached the solvers: bare
+    # TypeErrors ('>' not supported between 'str' and 'int'), or True taken as 1.
+    with pytest.raises(ParameterError, match=re.escape(message)):
+        RepairOptions(method=method, solver_options=options)
 
 
 def test_no_method_gives_none_a_meaning_of_its_own():

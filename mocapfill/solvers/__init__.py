@@ -16,6 +16,7 @@ them rows centred and scaled to unit RMS (see ``mocapfill.pipeline``).
 from __future__ import annotations
 
 import importlib
+import inspect
 from collections.abc import Callable
 
 import numpy as np
@@ -51,15 +52,19 @@ def get_method(name: str) -> Method:
     return getattr(importlib.import_module(module_name), func_name)
 
 
-def option_names(fn: Method) -> frozenset[str]:
-    """The keyword options ``fn`` takes (besides matrix and observed).
+def option_parameters(fn: Method) -> dict[str, inspect.Parameter]:
+    """The keyword options ``fn`` takes (besides matrix and observed), as signature
+    parameters (name, default, annotation).
 
-    A method that passes ``**options`` on to another declares it as ``fn.forwards_to``.
+    A method that passes ``**options`` on to another declares it as ``fn.forwards_to``;
+    its own parameter wins where both name an option.
     """
-    import inspect
-
     params = list(inspect.signature(fn).parameters.values())[2:]
-    names = {p.name for p in params if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
+    own = {p.name: p for p in params if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
     forwards_to = getattr(fn, "forwards_to", None)
-    return frozenset(names | (option_names(forwards_to) if forwards_to else set()))
+    return {**(option_parameters(forwards_to) if forwards_to else {}), **own}
 
+
+def option_names(fn: Method) -> frozenset[str]:
+    """The keyword options ``fn`` takes (besides matrix and observed)."""
+    return frozenset(option_parameters(fn))
