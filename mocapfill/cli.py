@@ -760,16 +760,19 @@ def bench() -> None:
               help="Runs per case (medians are reported).")
 @click.option("--quick", is_flag=True,
               help="Skip the 30-minute and 300-marker synthetic clips.")
+@click.option("--big-runs", type=click.IntRange(1, 100), default=1, show_default=True,
+              help="Runs of the 30-minute and 300-marker clips (a minute or more each).")
 @click.option("--no-compare", is_flag=True, help="Skip the trnn-paper and tsmc runs.")
 @click.option("--json", "json_path", type=_OutputFile(), default=None,
               help="Also write the rows to FILE.json.")
-def bench_speed(runs: int, quick: bool, no_compare: bool, json_path: Path | None) -> None:
+def bench_speed(runs: int, quick: bool, big_runs: int, no_compare: bool,
+                json_path: Path | None) -> None:
     """Wall time (s) of `mocapfill repair` per case, iterations, ms per iteration against
     the computed floor, peak memory (MB), and trnn-paper / tsmc side by side."""
     from .bench_speed import format_speed_table, rows_as_dicts, run_speed
 
     _check_written(json_path)
-    rows = run_speed(runs=runs, quick=quick, compare=not no_compare)
+    rows = run_speed(runs=runs, quick=quick, compare=not no_compare, big_runs=big_runs)
     click.echo(format_speed_table(rows))
     if json_path is not None:
         from .formats import write_text_atomically

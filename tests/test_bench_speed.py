@@ -29,7 +29,8 @@ def test_table_lists_every_case():
     assert "| a | trnn | 0.100 / 0.200 / 0.300 | 1.0 | 7 | 1.5 | 0.5 | 50 |" in table
 
 
-def test_big_cases_are_timed_once_and_without_the_comparison_methods(monkeypatch, tmp_path):
+def test_big_cases_are_timed_big_runs_times_without_the_comparison_methods(monkeypatch,
+                                                                         tmp_path):
     from mocapfill import bench_speed
 
     calls = []
@@ -58,6 +59,12 @@ def test_big_cases_are_timed_once_and_without_the_comparison_methods(monkeypatch
                            ("synthetic_10000x300.npz", "tsmc", 1)]
     long_row = next(r for r in rows if "216000" in r.case)
     assert long_row.iterations is None and long_row.runs == 1
+    calls.clear()
+    rows = bench_speed.run_speed(runs=3, compare=False, big_runs=5)
+    assert [(path.rsplit("/", 1)[-1], runs) for path, method, runs in calls
+            if path != "--help"] == [("synthetic_216000x41.npz", 5),
+                                     ("synthetic_10000x300.npz", 3)]
+    assert next(r for r in rows if "216000" in r.case).runs == 5
 
 
 def test_a_childs_peak_memory_is_its_own_not_the_benchmarks():
