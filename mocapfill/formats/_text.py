@@ -499,10 +499,15 @@ def rate_from_times(times: np.ndarray) -> float | None:
 
 
 def first_frame_from(frames: np.ndarray, default: int = 1) -> int:
-    """The first Frame value when it is a whole number, else ``default``."""
-    finite = frames[np.isfinite(frames)]
-    if finite.size and float(finite[0]).is_integer():
-        return int(finite[0])
+    """The number of the first row: the first Frame value when it is a whole number, less
+    the rows before it whose Frame cell is empty, else ``default``.
+
+    Rows are consecutive frames, so a blank first cell (then ``101``) numbers the first
+    row 100; taking 101 put every frame number of a gap report one too high.
+    """
+    seen = np.flatnonzero(np.isfinite(frames))
+    if seen.size and float(frames[seen[0]]).is_integer():
+        return int(frames[seen[0]]) - int(seen[0])
     return default
 
 

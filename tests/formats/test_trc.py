@@ -416,3 +416,14 @@ def test_a_clip_without_a_rate_is_written_at_120_hz_with_a_note(tmp_path, suffix
     assert notes == ("the clip's frame rate is not known (0 Hz): written as 120 Hz",)
     assert formats.read(tmp_path / f"a{suffix}").rate == 120.0
     assert formats.write(clip, tmp_path / f"b{suffix}") == ()
+
+
+def test_a_blank_first_frame_number_counts_back_from_the_next_one(tmp_path):
+    # Rows are consecutive frames: with the first Frame# cell blank and the next row
+    # numbered 41, the first row is frame 40 (41 made every reported frame one too high).
+    rows = [row.replace(f"{k + 1}\t", f"{k + 40}\t", 1) for k, row in enumerate(ROWS)]
+    rows[0] = "\t" + rows[0].split("\t", 1)[1]
+    numbers = [int(row.split("\t")[0]) for row in rows[1:]]
+    motion = trc.read(write_text(tmp_path, trc_text(rows), "a.trc"))
+    assert motion.first_frame == numbers[0] - 1
+    assert motion.source.notes == ()
