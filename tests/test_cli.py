@@ -998,3 +998,27 @@ def test_an_input_that_cannot_be_read_says_why_not_that_it_cannot_be_parsed(clip
     result = run("repair", path, clip_files / f"out{suffix}")
     assert result.exit_code == 123
     assert result.stderr == f"mocapfill: error: {path}: cannot read (Permission denied)\n"
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_simulate_in_channel_space_counts_the_joint_samples_hit_and_the_positions_lost(
+        tmp_path, seed):
+    # --ml 10 --markers 1 on a BVH written back as BVH removes one joint's channels for 10
+    # frames; the joints those channels move lose their positions (Hips: Hips, Arm and
+    # Arm_End; Arm: Arm_End alone). The line gave only the positions, which did not say
+    # how many joint samples the protocol hit.
+    from .formats.test_bvh import write_bvh
+
+    rows = [f"{k} 0 0 {2 * k} {k} 0 {3 * k} 0 {k}" for k in range(40)]
+    path = write_bvh(tmp_path, rows)
+    result = run("simulate", path, tmp_path / "o.bvh", "--ml", "10", "--markers", "1",
+                 "--seed", seed)
+    assert result.exit_code == 0, result.output
+    motion_rows = (tmp_path / "o.bvh").read_text().split("Frame Time: 0.01\n")[1].split("\n")
+    cells = np.array([[c == "nan" for c in row.split()] for row in motion_rows if row])
+    hips, arm = cells[:, :6].any(axis=1), cells[:, 6:].any(axis=1)
+    joint_samples = int(hips.sum() + arm.sum())
+    positions = int(3 * hips.sum() + (arm & ~hips).sum())      # Hips moves all three points
+    assert joint_samples == 10
+    assert (f"{positions} samples removed (joint positions; the channels of {joint_samples} "
+            "joint samples were removed") in result.stderr, result.stderr
