@@ -106,3 +106,12 @@ def test_unfilled_samples_are_marked_in_the_table():
     table = bench.format_table(rows)
     assert "| cmu 85_02 ml=40 | **1.00**† / 1.00s | 2.00 / 1.00s |" in table
     assert "85_02 ml=40 / psvt: 240 interior samples left unfilled, not scored" in table
+
+
+def test_the_table_says_which_error_each_dataset_line_gives():
+    # walkl lines give the 3-D error, CMU lines the RMSE over coordinates (√3 smaller for
+    # the same fills): the printed table did not say which.
+    rows = [_row("WalkL_0001", "trnn", 1.0, dataset="walkl"), _row("85_02 ml=40", "trnn", 2.0)]
+    table = bench.format_table(rows)
+    assert "- walkl lines: 3-D RMS marker error (mm) over the interior gap samples" in table
+    assert "- cmu lines: the paper's RMSE over the missing coordinates (mm" in table
