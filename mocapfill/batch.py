@@ -477,12 +477,12 @@ def _read(job: FileJob):
 
 def _options_for(job: FileJob, rate: float):
     from . import formats
-    from .pipeline import RepairOptions, frames_in_seconds
+    from .pipeline import RepairOptions, frames_in_seconds, whole_frames_within
 
     options = job.options or RepairOptions()
     if job.max_gap_s is not None:
         frames = frames_in_seconds(job.max_gap_s, rate, job.input, f"{job.max_gap_s:g}s")
-        options = replace(options, max_gap_frames=round(frames))
+        options = replace(options, max_gap_frames=whole_frames_within(frames))
     if formats.same_skeleton_format(job.input, job.output):
         options = replace(options, space="channels")
     return options

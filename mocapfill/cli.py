@@ -156,7 +156,7 @@ def _read(path: Path, zero_is_missing: str = "auto"):
 def _parse_max_gap(text: str | None, rate: float, path: Path | None = None) -> int | None:
     """'40' frames or '0.5s' seconds -> frames (None = unlimited); seconds need a rate."""
     from .errors import ParameterError
-    from .pipeline import frames_in_seconds
+    from .pipeline import frames_in_seconds, whole_frames_within
 
     if text is None:
         return None
@@ -176,7 +176,7 @@ def _parse_max_gap(text: str | None, rate: float, path: Path | None = None) -> i
     if not math.isfinite(frames) or frames < 0:
         raise ParameterError(f"--max-gap must be a finite number ≥ 0 (at this file's rate), "
                              f"got {text!r}")
-    return int(round(frames))
+    return whole_frames_within(frames)
 
 
 def _summary_line(result, in_path: Path, out_path: Path) -> str:

@@ -901,3 +901,18 @@ def test_an_in_place_write_that_fails_names_the_input_not_its_temporary(tmp_path
     assert ".inplace" not in result.stderr and ".tmp" not in result.stderr
     assert path.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["clip.npz"]
+
+
+def test_max_gap_in_seconds_leaves_a_gap_just_longer_than_that_in_a_batch(tmp_path):
+    # 0.07 s at 250 Hz is 17.5 frames: an 18-frame gap (0.072 s) is longer and is left,
+    # a 17-frame one (0.068 s) filled. Rounding to 18 frames filled both.
+    root = tmp_path / "data"
+    root.mkdir()
+    clip = with_gap(with_gap(smooth_clip(200, 4, rate=250.0), 1, 50, 68), 2, 100, 117)
+    formats.write(clip, root / "a.npz")
+    report = mocapfill.repair_many([root], tmp_path / "out", jobs=1, max_gap_s=0.07,
+                                   options=RepairOptions(method="linear", max_jump_mm=0))
+    (record,) = report.records
+    assert (record.gaps_filled, record.gaps_left) == (1, 1)
+    observed = formats.read(tmp_path / "out" / "a.npz").observed
+    assert not observed[50:68, 1].any() and observed[100:117, 2].all()

@@ -1022,3 +1022,25 @@ def test_simulate_in_channel_space_counts_the_joint_samples_hit_and_the_position
     assert joint_samples == 10
     assert (f"{positions} samples removed (joint positions; the channels of {joint_samples} "
             "joint samples were removed") in result.stderr, result.stderr
+
+
+@pytest.mark.parametrize(("rate", "seconds"), [(250.0, "0.07"), (100.0, "0.29"), (120.0, "0.5"),
+                                               (240.0, "0.0125")])
+def test_max_gap_in_seconds_leaves_exactly_the_gaps_longer_than_that(tmp_path, rate, seconds):
+    # Gaps of every length around the limit: a gap is left when its length in seconds
+    # (frames / rate, as the report gives it) is longer than the seconds given. 17.5
+    # frames at 250 Hz was rounded to 18, so an 18-frame gap (0.072 s) was filled.
+    lengths = list(range(1, 70))
+    clip = smooth_clip(120 * len(lengths), len(lengths), rate=rate)
+    for marker, length in enumerate(lengths):
+        clip = with_gap(clip, marker, 100 * marker + 10, 100 * marker + 10 + length)
+    formats.write(clip, tmp_path / "g.npz")
+    result = run("repair", tmp_path / "g.npz", tmp_path / "o.npz", "--method", "linear",
+                 "--max-gap", f"{seconds}s", "--max-jump", "0", "--gaps-report",
+                 tmp_path / "g.json")
+    assert result.exit_code == 0, result.output
+    statuses = [g["status"] for g in json.loads((tmp_path / "g.json").read_text())["gaps"]]
+    limit = float(seconds)
+    expected = ["left: too long" if length / rate > limit * (1 + 1e-12) else "filled"
+                for length in lengths]
+    assert statuses == expected
