@@ -266,7 +266,8 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
                    "largest observed frame-to-frame acceleration (plus its largest step "
                    "where one observed sample stands alone); 0 disables the check.")
 @click.option("--check", is_flag=True,
-              help="Exit with code 1 when any gap is left unfilled (in any file).")
+              help="Exit with code 1 when any gap is left unfilled (in any file; a "
+                   "batch's skipped outputs are read to count theirs).")
 @_zero_option
 def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, report_path,
            suffix, method: str, rank, lam, mu, rho, eta0, tol, max_iter, max_gap, ends, markers,
