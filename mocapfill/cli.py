@@ -149,8 +149,12 @@ _zero_option = click.option(
 def _read(path: Path, zero_is_missing: str = "auto"):
     from . import formats
 
-    options = {"zero_is_missing": zero_is_missing} if path.suffix.lower() == ".c3d" else {}
-    return formats.read(path, **options)
+    if path.suffix.lower() == ".c3d":
+        return formats.read(path, zero_is_missing=zero_is_missing)
+    if zero_is_missing == "on":     # asked for explicitly: say it cannot apply here
+        click.echo(f"mocapfill: note: {path}: --zero-is-missing on applies to C3D files "
+                   "only; samples at exactly (0, 0, 0) in this file are read as data", err=True)
+    return formats.read(path)
 
 
 def _parse_max_gap(text: str | None, rate: float, path: Path | None = None) -> int | None:

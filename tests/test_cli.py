@@ -1044,3 +1044,20 @@ def test_max_gap_in_seconds_leaves_exactly_the_gaps_longer_than_that(tmp_path, r
     expected = ["left: too long" if length / rate > limit * (1 + 1e-12) else "filled"
                 for length in lengths]
     assert statuses == expected
+
+
+@pytest.mark.parametrize("zeros", [None, "auto", "off", "on"])
+def test_zero_is_missing_on_for_a_file_that_is_not_c3d_is_noted(tmp_path, zeros):
+    # QTM-derived text files hold gaps as 0, 0, 0 (formats-and-conventions.md 1.1, 4.2), but
+    # --zero-is-missing reads C3D files only: asked for on a CSV it was ignored without a
+    # word, the zeros kept as data, and the repair said "0 gaps filled" with exit 0.
+    src = tmp_path / "z.csv"
+    text = "Frame,Time,A_X,A_Y,A_Z\n1,0,1,2,3\n2,0.01,0,0,0\n3,0.02,1,2,3\n"
+    src.write_text(text)
+    option = [] if zeros is None else ["--zero-is-missing", zeros]
+    result = run("repair", src, tmp_path / "out.csv", "--method", "linear", *option)
+    assert result.exit_code == 0, result.output
+    note = (f"mocapfill: note: {src}: --zero-is-missing on applies to C3D files only; "
+            "samples at exactly (0, 0, 0) in this file are read as data")
+    assert (note in result.stderr) == (zeros == "on")
+    assert (tmp_path / "out.csv").read_text() == text
