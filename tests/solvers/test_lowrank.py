@@ -53,3 +53,31 @@ def test_few_complete_frames_take_alternating_least_squares(missing_value):
     np.testing.assert_array_equal(out[observed], X[observed])
     start_error = np.abs(linear_fill(data, observed) - X)[~observed].max()
     assert np.abs(out - X)[~observed].max() < 1e-3 * start_error
+
+
+@pytest.mark.parametrize("every_frame_gapped", [False, True])
+def test_a_tall_clip_never_decomposes_a_rows_by_rows_matrix(monkeypatch, every_frame_gapped):
+    # More rows than frames (1,000 markers over 100 frames): the subspace comes from the
+    # thin SVD (rows × frames), not from the rows × rows X Xᵀ, whose eigendecomposition
+    # took seconds, nine times per warm start. The fill is still the exact one.
+    m, n = 240, 40
+    X = _rank_r_clip(m, n, 3, seed=4)
+    observed = np.ones((m, n), dtype=bool)
+    if every_frame_gapped:
+        observed[np.arange(n) % m, np.arange(n)] = False
+    else:
+        observed[[0, 1, 2], 10:20] = False
+    sizes = []
+    eigh = np.linalg.eigh
+
+    def recording(a, *args, **kwargs):
+        sizes.append(np.shape(a)[-1])
+        return eigh(a, *args, **kwargs)
+
+    monkeypatch.setattr(np.linalg, "eigh", recording)
+    out = low_rank_start(np.where(observed, X, np.nan), observed, rank=3,
+                         rounds=30, ridge=1e-9)
+    assert max(sizes, default=0) <= n
+    np.testing.assert_array_equal(out[observed], X[observed])
+    np.testing.assert_allclose(out, X, rtol=0, atol=1e-4)
+    assert np.allclose(_top_subspace(X, 3).T @ _top_subspace(X, 3), np.eye(3))
