@@ -390,7 +390,8 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     - ``rigid``: rigid-body motion of the three most rigidly attached visible markers
       (24 mm on 85_02 at ml = 40, where TrNN gives 60 and pca 22).
     - ``pca``: Gløersen & Federolf (2016), only when the clip has ≥ 60 complete frames
-      (it needs them, and is then cheap).
+      (it needs them, and is then cheap); joined to the gap ends by the ramp of its
+      offsets beside each gap (:func:`mocapfill.solvers.pca.gap_fill`).
     - ``regression``, ``rigid`` and ``pca`` see the gaps under 5 frames filled first by
       the cubic spline (:class:`~mocapfill.solvers.gapwise.ShortRunsFirst`; complete
       frames are counted so too): flicker otherwise leaves a long gap without a donor or
@@ -519,7 +520,7 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
         # Gløersen & Federolf's PCA fill needs complete frames, counted with the short gaps
         # filled (flicker leaves none otherwise); where the clip has them it is cheap and
         # its errors are partly independent of TrNN's.
-        from .pca import complete as pca
+        from .pca import gap_fill as pca
 
         # A budget of PCA models per marker keeps clips with gaps overlapping in many
         # combinations from costing one PCA each (validation judges what is left); the
