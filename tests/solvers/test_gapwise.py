@@ -291,6 +291,27 @@ def test_a_candidate_gone_wild_on_a_gap_loses_its_weight_there():
     np.testing.assert_array_equal(_one_gap(w, same), w)
 
 
+def test_long_gaps_judge_outliers_more_strictly_than_short_ones():
+    # A fill 2.5× the typical distance from the median fill: kept on a short gap, where
+    # candidates agree closely and the spread is the fills' own; left out on a long gap,
+    # where candidates go wild (see OUTLIER_FACTOR).
+    from mocapfill.solvers.gapwise import LONG_GAP, outlier_factor
+
+    rng = np.random.default_rng(14)
+    truth = np.cumsum(rng.normal(size=(3, LONG_GAP)), axis=1)
+    offsets = [-0.3, -0.2, -0.1, 0.0, 0.1, 0.2, 0.5]
+    fills = [truth + d for d in offsets]      # the median fill is truth; typical distance 0.2
+    w = np.full(7, 1 / 7)
+    distance = np.sqrt(((np.stack(fills) - np.median(np.stack(fills), axis=0)) ** 2)
+                       .mean(axis=(1, 2)))
+    assert 2 < distance[6] / np.median(distance) < 3
+    assert outlier_factor(LONG_GAP - 1) == 3.0 and outlier_factor(LONG_GAP) == 2.0
+    short = _one_gap(w, fills, factor=outlier_factor(LONG_GAP - 1))
+    long = _one_gap(w, fills, factor=outlier_factor(LONG_GAP))
+    np.testing.assert_allclose(short, w)
+    assert long[6] == 0 and long.sum() == pytest.approx(1.0)
+
+
 def test_outliers_are_judged_again_around_the_median_of_the_others():
     # Three wild fills drag the first median towards themselves: the first round only
     # catches them, the second one also the fill 10× farther off than the good ones.
