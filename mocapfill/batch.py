@@ -376,13 +376,11 @@ def _with_gaps_left(record: FileRecord, zero_is_missing: str) -> FileRecord:
     """A skipped file's record with the gaps its output still has (what a ``--check`` on
     a resumed batch must see: the run that wrote the output may have left gaps), or
     failed where the output cannot be read."""
-    from . import formats
     from .gaps import find_gaps
 
     output = Path(record.output)
-    extra = {"zero_is_missing": zero_is_missing} if output.suffix.lower() == ".c3d" else {}
     try:
-        motion = formats.read(output, **extra)
+        motion = _read(output, zero_is_missing)
     except (MocapfillError, OSError) as exc:
         # The record names the input; the reason names the output it could not read.
         problem = str(exc) if isinstance(exc, FormatError) else f"{output}: {exc}"
@@ -467,12 +465,12 @@ def remove_temp_files(jobs: Iterable[FileJob]) -> None:
                 leftover.unlink(missing_ok=True)
 
 
-def _read(job: FileJob):
+def _read(path: Path, zero_is_missing: str):
+    """``formats.read``, with ``zero_is_missing`` for a C3D file (the others take none)."""
     from . import formats
 
-    extra = ({"zero_is_missing": job.zero_is_missing}
-             if job.input.suffix.lower() == ".c3d" else {})
-    return formats.read(job.input, **extra)
+    extra = {"zero_is_missing": zero_is_missing} if path.suffix.lower() == ".c3d" else {}
+    return formats.read(path, **extra)
 
 
 def _options_for(job: FileJob, rate: float):
@@ -517,7 +515,7 @@ def repair_file(job: FileJob) -> FileRecord:
         return record(FAILED, problem)
     try:
         read_as = _state(job.input)
-        motion = _read(job)
+        motion = _read(job.input, job.zero_is_missing)
         frames = motion.n_frames
         read_notes = reader_notes(motion)       # as `repair IN OUT` prints them
         try:

@@ -149,6 +149,8 @@ def _check_kinds(options: dict, parameters: dict) -> None:
     a number (not a string, not True), a flag or a name; None passes (the default).
     Such values reached the solvers and ended in bare TypeErrors."""
     for name, value in options.items():
+        if value is None:
+            continue
         parameter = parameters[name]
         annotation = parameter.annotation
         if not isinstance(annotation, str):
@@ -156,7 +158,7 @@ def _check_kinds(options: dict, parameters: dict) -> None:
         kind = _KINDS.get(annotation.split("|")[0].strip())
         if kind is None and parameter.default is not None:
             kind = _KINDS.get(type(parameter.default).__name__)
-        if value is None or kind is None:
+        if kind is None:
             continue
         flag = isinstance(value, (bool, np.bool_))
         ok = {"a number": isinstance(value, Real) and not flag,
