@@ -676,7 +676,7 @@ def _weights_for(cls: int, weights: dict[int, np.ndarray], default: np.ndarray) 
 # OUTLIER_FACTOR on gaps under LONG_GAP frames, LONG_OUTLIER_FACTOR on longer ones. Long
 # gaps are where candidates go wild (a catastrophic-fill audit, 1,801 hidden gaps of 20–200
 # frames on 21 real clips: 58 fills more than twice the best simple method's error, most
-# with a candidate over 3× the typical distance kept; factor 2 there, replayed: 47), while on
+# with a candidate far off the truth kept in the blend; factor 2, replayed: 47), while on
 # short gaps the candidates agree closely and a factor of 2 dropped good fills (85_12 at
 # mr = 0.4, 0.126 → 0.145 mm). Measured with the PCA candidate joined to the gap ends, the
 # default over the accuracy benchmark (docs/results.md, twenty-eighth session): factor 3
