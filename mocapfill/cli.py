@@ -571,9 +571,9 @@ def simulate(in_path: Path, out_path: Path, mr, ml, n_markers, seed, zero_is_mis
 def _joint_samples_removed(motion, gapped) -> int:
     """Joint samples (a joint with channels, in one frame) that had all their channels in
     ``motion`` and lack one in ``gapped``."""
-    from .gaps import _joint_proxy
+    from .gaps import joint_samples_observed
 
-    return int((_joint_proxy(motion)[4].observed & ~_joint_proxy(gapped)[4].observed).sum())
+    return int((joint_samples_observed(motion) & ~joint_samples_observed(gapped)).sum())
 
 
 # ---------------------------------------------------------------- rank

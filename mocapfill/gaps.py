@@ -207,6 +207,12 @@ def _joint_proxy(motion: Motion):
     return joints, values, observed, columns, proxy
 
 
+def joint_samples_observed(motion: Motion) -> np.ndarray:
+    """(frames, joints) mask of a BVH or AMC clip's joints that own channels: True where
+    every channel of the joint is observed (what the channel protocols remove)."""
+    return _joint_proxy(motion)[4].observed
+
+
 def simulate_channel_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = None,
                           markers: int = 10, seed: int | None = None) -> Motion:
     """The paper's protocols on a skeleton clip (BVH, AMC), removing joint channels.
