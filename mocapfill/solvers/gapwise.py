@@ -20,9 +20,10 @@ blends such candidate fills gap by gap, with weights chosen by *validation on th
    :func:`~mocapfill.solvers._linalg.simplex_least_squares`), kept where cross-validation
    shows they beat the best single candidate; this choice is averaged over bootstrap
    resamples of the pseudo-gaps (bagging).
-4. **Fill.** Run every candidate on the real mask and blend each real gap with the
-   weights of its length class, leaving out on each gap of ``MIN_MODEL_GAP`` frames or
-   more any candidate whose fill there is an outlier among the candidates' fills.
+4. **Fill.** Run every candidate on the real mask (or, for the costliest, TrNN, take the
+   fill of its validation run: see :func:`blend`'s ``once``) and blend each real gap with
+   the weights of its length class, leaving out on each gap of ``MIN_MODEL_GAP`` frames
+   or more any candidate whose fill there is an outlier among the candidates' fills.
 
 Every candidate joins the observed samples continuously at both ends of every gap
 (interpolants by construction; model fills by adding the linear ramp between their
@@ -832,6 +833,19 @@ def _stand_in_errors(fill_fn: Candidate, blinded: np.ndarray, train: np.ndarray,
     return fill[rows, frames[:, None]] - matrix[rows, frames[:, None]]
 
 
+def _stand_in_errors_and_fill(fill_fn: Candidate, blinded: np.ndarray, train: np.ndarray,
+                              matrix: np.ndarray, observed: np.ndarray, gapset: GapSet,
+                              rows: np.ndarray, frames: np.ndarray
+                              ) -> tuple[np.ndarray, np.ndarray]:
+    """A candidate run once (:func:`blend`'s ``once``): its errors on the stand-ins' hidden
+    samples, as :func:`_stand_in_errors`, and the values its validation run fills the real
+    missing samples with, joined to the real gaps' ends (a 1-D array in the order of
+    ``matrix[~observed]``: small enough to come back from a child process)."""
+    fill = fill_fn(blinded, train)
+    errors = fill[rows, frames[:, None]] - matrix[rows, frames[:, None]]
+    return errors, join_ends(fill, matrix, observed, gapset)[~observed]
+
+
 def _hidden_samples(hidden: list, groups: np.ndarray, observed: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rows (samples, k) and frames (samples,) of what the stand-ins hid, and the bounds
@@ -849,7 +863,8 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
           default: str, seed: int = 0, validation_fraction: float = 0.1,
           prior: dict[str, float] | None = None, prior_share: float = 0.5,
           validation: Validation | None = None, costly: tuple[str, ...] = (),
-          optional: tuple[str, ...] = (), validators: dict[str, Candidate] | None = None
+          optional: tuple[str, ...] = (), validators: dict[str, Candidate] | None = None,
+          once: tuple[str, ...] = ()
           ) -> tuple[np.ndarray, BlendReport]:
     """Fill every interior gap with a validated convex blend of the candidate fills.
 
@@ -877,7 +892,7 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         Evidence gathered on another clip with the same candidates (usually the
         neighbouring windows of a long clip, :meth:`Validation.pooled`): no stand-ins are
         hidden and the candidates run once, on the real mask. Without it the clip
-        validates itself, which runs every candidate twice.
+        validates itself, which runs every candidate twice (but those run ``once``).
     costly
         Names of the slowest candidates, whose runs start first, in this order, before
         the others (scheduling only: the fill does not depend on it).
@@ -891,6 +906,15 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     validators
         name → a cheaper form of that candidate, run in its place on the validation mask
         only (the windows of long clips: TrNN to a looser tolerance).
+    once
+        Names of candidates run once, on the validation mask, where the clip validates
+        itself: that run is scored on the stand-ins, and its fill, joined to the real
+        gaps' ends (:func:`join_ends`: where a stand-in took in a real gap's neighbour),
+        is the candidate's fill of the real gaps too. The fill then comes from a clip with
+        the stand-ins' samples hidden as well (at most ``validation_fraction``); for a
+        global model such as TrNN that is a small share of its evidence, and its second
+        run was the costliest of the blend's (see :func:`mocapfill.solvers.trnn.complete`).
+        Not with ``validators`` or ``optional`` for the same name.
 
     Returns
     -------
@@ -903,6 +927,8 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     rng = np.random.default_rng(seed)
     if validation is not None and validation.names != names:
         raise ValueError(f"validation of candidates {validation.names}, not {names}")
+    if set(once) & (set(validators or ()) | set(optional)):
+        raise ValueError("a candidate run once has no validator and is not optional")
     hidden = ([] if validation is not None else
               pseudo_gaps(observed, gapset, rng, fraction=validation_fraction))
 
@@ -941,9 +967,13 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         blinded = np.where(train, matrix, 0.0)
         sample_rows, sample_frames, bounds = _hidden_samples(hidden, groups, observed)
         spans = frozenset(span for span, _ in hidden)
-        trials = {i: partial(_stand_in_errors, (validators or {}).get(names[i],
-                                                                      candidates[names[i]]),
-                             blinded, train, matrix, sample_rows, sample_frames, spans)
+        ran_once = {i for i in order if names[i] in once}
+        trials = {i: partial(_stand_in_errors_and_fill, candidates[names[i]], blinded, train,
+                             matrix, observed, gapset, sample_rows, sample_frames)
+                  if i in ran_once else
+                  partial(_stand_in_errors, (validators or {}).get(names[i],
+                                                                  candidates[names[i]]),
+                          blinded, train, matrix, sample_rows, sample_frames, spans)
                   for i in order}
 
     def gather(trial_errors: list[np.ndarray]) -> None:
@@ -955,22 +985,27 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
             errors.setdefault(length_class(b - a), []).append(block)
             own.setdefault(source, []).append(block)
 
-    # Every candidate runs twice, on the validation mask and on the real one; the runs are
-    # independent, so they share the cores: each candidate's two runs side by side, the
-    # ``costly`` candidates first, so that no core is left alone with a long run at the
-    # end. A validation run keeps only its errors on the stand-ins, not its full fill, so
-    # the validation runs may go to a process of their own (``apart``, where the process
-    # may fork: no thread waits for the interpreter's lock on the other's behalf).
+    # Every candidate but those run ``once`` runs twice, on the validation mask and on the
+    # real one; the runs are independent, so they share the cores: each candidate's two
+    # runs side by side, the ``costly`` candidates first, so that no core is left alone
+    # with a long run at the end. A validation run keeps only its errors on the stand-ins
+    # (and, run once, its fill's values on the real missing samples), not its full fill,
+    # so the validation runs may go to a process of their own (``apart``, where the
+    # process may fork: no thread waits for the interpreter's lock on the other's behalf).
     # The ``optional`` candidates' fills wait for the weights, which need the validation.
     if hidden:
         keys = [(kind, i) for i in order for kind in ("trial", "fill")
-                if kind == "trial" or names[i] not in optional]
+                if kind == "trial" or (names[i] not in optional and i not in ran_once)]
         done = dict(zip(keys, run_all([trials[i] if kind == "trial" else fill_job(i)
                                        for kind, i in keys],
                                       apart=[k for k, (kind, _) in enumerate(keys)
                                              if kind == "trial"])))
         for i in range(len(names)):
             fills[i] = done.get(("fill", i))
+            if i in ran_once:
+                done[("trial", i)], missing_values = done[("trial", i)]
+                fills[i] = matrix.copy()
+                fills[i][~observed] = missing_values
         gather([done[("trial", i)] for i in range(len(names))])
     weights = blend_weights(errors, rng)
     gap_weights = _gap_weights(gapset, weights, own, names, default, rng, prior, prior_share)

@@ -508,6 +508,53 @@ def test_a_validator_runs_in_place_of_its_candidate_on_the_stand_ins_only(in_thi
     assert 0.9 * linear_error < error < 1.1 * linear_error
 
 
+def test_a_candidate_run_once_fills_the_real_gaps_from_its_validation_run(in_this_process):
+    from mocapfill.solvers._linalg import linear_fill
+    from mocapfill.solvers.gapwise import blend
+
+    t = np.arange(600) / 60.0
+    truth = np.vstack([np.sin(0.8 * (j + 1) * t + j) for j in range(18)])   # 6 markers
+    observed = _mask(6, 600, [(0, 100, 130), (2, 300, 320), (4, 450, 460), (5, 0, 25)])
+    matrix = np.where(observed, truth, 0.0)
+    results = {}
+    for once in ((), ("linear",)):
+        calls: list = []
+        candidates = {"linear": _counting(linear_fill, calls, "linear"),
+                      "shifted": _counting(lambda a, o: truth + 7.0, calls, "shifted")}
+        results[once], report = blend(matrix, observed, candidates, default="shifted",
+                                      once=once)
+        masks = [mask for name, mask in calls if name == "linear"]
+        assert len(masks) == (1 if once else 2)
+        assert report.pseudo_gaps > 0 and not (masks[0] == observed).all()
+    # Linear interpolation depends on a gap's end samples alone, and stand-ins keep an
+    # observed frame between themselves and a real gap: the fill of the real gaps from the
+    # validation run is the fill on the real mask, and the weights the same.
+    np.testing.assert_array_equal(results[()], results[("linear",)])
+
+
+def test_a_fill_run_once_is_joined_to_the_real_gap_ends_a_stand_in_took_in():
+    from mocapfill.solvers.gapwise import _stand_in_errors_and_fill
+
+    t = np.arange(300) / 60.0
+    truth = np.vstack([np.sin(0.5 * (j + 1) * t) for j in range(6)])        # 2 markers
+    observed = _mask(2, 300, [(1, 150, 160)])
+    groups = row_groups(observed)
+    gapset = GapSet(groups, interior_gaps(observed, groups))
+    # A dense-loss stand-in [140, 170) took in the real gap: the validation run's fill
+    # of 140–169 meets the data at 139 and 170, not at the real gap's ends 149 and 160.
+    train = observed.copy()
+    train[3:6, 140:170] = False
+    rows = np.repeat(groups[1][None, :], 20, axis=0)
+    frames = np.r_[140:150, 160:170]
+    errors, values = _stand_in_errors_and_fill(lambda a, o: truth + 7.0,
+                                               np.where(train, truth, 0.0), train,
+                                               np.where(observed, truth, 0.0), observed,
+                                               gapset, rows, frames)
+    np.testing.assert_allclose(errors, 7.0)          # scored on the hidden samples
+    # The candidate's constant offset, removed by the ramp between the real ends.
+    np.testing.assert_allclose(values, truth[~observed], atol=1e-12)
+
+
 def test_nearest_frames_are_those_of_sorting_every_frame_by_distance():
     from mocapfill.solvers.gapwise import _nearest_frames
 
