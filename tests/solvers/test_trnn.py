@@ -72,6 +72,28 @@ def test_complete_keeps_observed_entries():
     np.testing.assert_allclose(filled[observed], X[observed], atol=1e-12)
 
 
+def test_the_default_runs_trnn_once_where_the_clip_validates_itself(monkeypatch):
+    import mocapfill.solvers.trnn as module
+
+    monkeypatch.setenv("MOCAPFILL_THREADS", "1")        # the calls are seen here
+    X = _smooth_low_rank_clip(n=300, markers=8)
+    observed = np.ones_like(X, bool)
+    observed[3:6, 100:130] = False
+    observed[9:12, 200:203] = False
+    masks = []
+    solve = module.complete_lowrank
+
+    def counted(matrix, seen, **options):
+        masks.append(seen.copy())
+        return solve(matrix, seen, **options)
+
+    monkeypatch.setattr(module, "complete_lowrank", counted)
+    complete(np.where(observed, X, 0.0), observed)
+    # One run, on the validation clip (the real gaps and the stand-ins missing).
+    assert len(masks) == 1
+    assert (masks[0] <= observed).all() and masks[0].sum() < observed.sum()
+
+
 def test_a_window_lent_only_empty_validations_validates_itself():
     from mocapfill.solvers.gapwise import Validation
     from mocapfill.solvers.trnn import complete_window
