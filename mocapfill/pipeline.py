@@ -324,6 +324,11 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
     scale = UnitScale.fit(matrix, observed)
     scaled = scale.forward(np.where(observed, matrix, 0.0))
     fn = get_method(method)
+    if getattr(fn, "takes_centre", False):
+        # Where each row's zero lies in the unit scale: the blend's rigid-partner check
+        # measures true distances between markers (the row-wise centring shifts each
+        # marker by its own mean and distorts them).
+        solver_options = {**solver_options, "centre": scale.centre[:, 0] / scale.scale}
     validation = None
     try:
         if borrowed is not None:

@@ -499,6 +499,7 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
     from .tsmc import offered as tsmc_offered
 
     trnn_options.pop("rate", None)
+    centre = trnn_options.pop("centre", None)
     if observed.all():
         return np.array(matrix, dtype=np.float64), None
     # The per-gap models and PCA see the short gaps filled first (one spline fill for
@@ -548,9 +549,10 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
                               if skip_unweighted else (),
                               validators={"trnn": lambda a, o: complete_lowrank(a, o, **loose)}
                               if skip_unweighted else None,
-                              once=() if skip_unweighted else ("trnn",))
+                              once=() if skip_unweighted else ("trnn",), centre=centre)
     return completed, report.validation
 
 
 complete.forwards_to = complete_lowrank     # its **trnn_options (see solvers.option_names)
 complete.windowed = complete_window         # lends validation between windows (pipeline)
+complete.takes_centre = True                # the pipeline passes its rows' centres (blend)

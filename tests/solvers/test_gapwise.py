@@ -767,3 +767,100 @@ def test_candidates_wrapped_by_one_short_runs_first_instance_share_its_spline_fi
         np.testing.assert_array_equal(fill, ShortRunsFirst()(w.__wrapped__)(matrix, observed))
     wrapped[0](matrix.copy(), observed)        # other arrays: filled again
     assert len(calls) == 4
+
+
+def _rigid_clip(n: int = 400, seed: int = 21):
+    """(rows × n) matrix of four markers on one turning, moving rigid body (markers 0–3)
+    and a fifth moving on its own, with 0.002 of noise."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 100.0
+    body = np.array([[0.3, 0.0, 0.1], [0.0, 0.25, 0.0], [-0.2, -0.1, 0.15], [0.1, 0.1, -0.3]])
+    angle = 0.8 * np.sin(1.3 * t)
+    c, s = np.cos(angle), np.sin(angle)
+    rotation = np.array([[c, -s, 0 * c], [s, c, 0 * c], [0 * c, 0 * c, 1 + 0 * c]])
+    centre = np.stack([np.sin(0.7 * t), 0.5 * np.cos(0.4 * t), 0.2 * t])      # (3, n)
+    markers = [np.einsum("abn,b->an", rotation, p) + centre for p in body]
+    markers.append(np.stack([np.cos(2.1 * t), np.sin(1.7 * t), np.cos(0.9 * t)]))
+    return np.vstack(markers) + 0.002 * rng.normal(size=(15, n))
+
+
+def _fixed(values: np.ndarray):
+    """A candidate that fills every gap with ``values``."""
+    return lambda matrix, observed: values
+
+
+def _partner_blend(fills: dict, prior: dict, gap=(0, 150, 180), **options):
+    from mocapfill.solvers.gapwise import Validation, blend
+
+    truth = _rigid_clip()
+    observed = _mask(5, truth.shape[1], [gap])
+    candidates = {name: _fixed(f(truth)) for name, f in fills.items()}
+    shift = options.pop("shift", None)
+    matrix = np.where(observed, truth, 0.0)
+    if shift is not None:            # the unit scale's row-wise centring, with its centres
+        matrix = np.where(observed, matrix - shift[:, None], 0.0)
+        candidates = {name: _fixed(f(truth) - shift[:, None]) for name, f in fills.items()}
+        options["centre"] = shift
+    filled, _ = blend(matrix, observed, candidates, default=next(iter(fills)),
+                      validation=Validation(tuple(fills), {}, {}), prior=prior,
+                      prior_share=1.0, **options)
+    if shift is not None:
+        filled = filled + shift[:, None]
+    j, a, b = gap
+    return truth, filled[3 * j:3 * j + 3, a:b], truth[3 * j:3 * j + 3, a:b]
+
+
+def _bump(size: float, gap=(0, 150, 180)):
+    """A fill of marker 0 pushed ``size`` off the truth along x in the middle of the gap
+    (0 at its ends), the rest the truth."""
+    j, a, b = gap
+
+    def fill(truth):
+        out = truth.copy()
+        out[3 * j, a:b] += size * np.sin(np.pi * np.arange(1, b - a + 1) / (b - a + 1))
+        return out
+    return fill
+
+
+def test_a_fill_that_leaves_its_rigid_partners_loses_its_weight():
+    # Three fills of a marker of a rigid body: the truth, one pushed 0.2 off its partners
+    # and one 0.1 off. The median rule keeps all three (the median fill is the middle one,
+    # the other two lie equally far from it), but the two pushed off leave the band of
+    # distances to the body's other markers (which vary by ~0.003 over the clip): the
+    # truth alone fills the gap.
+    fills = {"good": lambda t: t.copy(), "off": _bump(0.2), "half": _bump(0.1)}
+    prior = {"good": 0.2, "off": 0.4, "half": 0.4}
+    _, gap_fill, gap_truth = _partner_blend(fills, prior)
+    np.testing.assert_allclose(gap_fill, gap_truth, atol=1e-12)
+    segments = np.stack([f(_rigid_clip())[0:3, 150:180] for f in fills.values()])
+    np.testing.assert_array_equal(_one_gap([0.2, 0.4, 0.4], list(segments), factor=2.0),
+                                  [0.2, 0.4, 0.4])
+
+
+def test_the_partner_check_measures_true_distances_given_the_rows_centres():
+    # The blend sees the unit scale's rows, each centred on its own mean: the distances
+    # between markers are those of the data only with the centres added back.
+    fills = {"good": lambda t: t.copy(), "off": _bump(0.2), "half": _bump(0.1)}
+    prior = {"good": 0.2, "off": 0.4, "half": 0.4}
+    shift = np.random.default_rng(3).normal(size=15)
+    _, gap_fill, gap_truth = _partner_blend(fills, prior, shift=shift)
+    np.testing.assert_allclose(gap_fill, gap_truth, atol=1e-12)
+
+
+def test_when_every_weighted_fill_leaves_the_partners_the_weights_stand():
+    fills = {"good": lambda t: t.copy(), "off": _bump(0.2), "half": _bump(0.1)}
+    prior = {"good": 0.0, "off": 0.5, "half": 0.5}
+    _, gap_fill, gap_truth = _partner_blend(fills, prior)
+    expected = gap_truth.copy()
+    expected[0] += 0.15 * np.sin(np.pi * np.arange(1, 31) / 31)
+    np.testing.assert_allclose(gap_fill, expected, atol=1e-12)
+
+
+def test_fills_within_the_partners_band_keep_their_weights():
+    # Fills 0.001 apart (under the noise) all stay in the band: the blend is unchanged.
+    fills = {"good": lambda t: t.copy(), "off": _bump(0.001), "half": _bump(0.0005)}
+    prior = {"good": 0.2, "off": 0.4, "half": 0.4}
+    _, gap_fill, gap_truth = _partner_blend(fills, prior)
+    expected = gap_truth.copy()
+    expected[0] += 0.0006 * np.sin(np.pi * np.arange(1, 31) / 31)
+    np.testing.assert_allclose(gap_fill, expected, atol=1e-12)
