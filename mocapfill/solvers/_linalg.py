@@ -313,10 +313,13 @@ def pair_distances(points: np.ndarray, seen: np.ndarray, *, spread: bool = True
     return count, mean, std
 
 
-def distance_rows(points: np.ndarray, seen: np.ndarray, rows: list, spread: bool):
+def distance_rows(points: np.ndarray, seen: np.ndarray, rows: list, spread: bool, *,
+                  extent: bool = False):
     """For each (j, others) of ``rows`` (others: a slice or an index array of markers),
     the frames seeing both, mean and std (None unless ``spread``) of the distance from
-    marker j to each of ``others``, as :func:`pair_distances` defines them.
+    marker j to each of ``others``, as :func:`pair_distances` defines them; with
+    ``extent``, also its least and largest value over those frames (∞ and −∞ where
+    there is none).
 
     A generator, so that one row's temporaries are still held while the next is
     computed: freed at every return of a function, the same loop took twice as long
@@ -332,7 +335,11 @@ def distance_rows(points: np.ndarray, seen: np.ndarray, rows: list, spread: bool
         m = np.where(both, dist, 0.0).sum(axis=0) / safe
         s = (np.sqrt(np.where(both, (dist - m) ** 2, 0.0).sum(axis=0) / safe) if spread
              else None)
-        yield n_both, m, s
+        if extent:
+            yield (n_both, m, s, np.where(both, dist, np.inf).min(axis=0, initial=np.inf),
+                   np.where(both, dist, -np.inf).max(axis=0, initial=-np.inf))
+        else:
+            yield n_both, m, s
 
 
 def nearest_markers(points: np.ndarray, seen: np.ndarray, count: int) -> np.ndarray:

@@ -753,33 +753,35 @@ PARTNER_TOLERANCE = 2.0
 PARTNER_VOTES = 2
 
 
-def _partner_bands(P: np.ndarray, seen: np.ndarray, rows: list[int]
+def _partner_bands(matrix: np.ndarray, observed: np.ndarray, gapset: GapSet,
+                   centre: np.ndarray | None
                    ) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
-    """For each marker j of ``rows``: (spread, lo, hi, others) of its distances to the
-    markers ``others`` (all, or its RIGID_CANDIDATES nearest on clips with more markers),
-    over the frames seeing both: standard deviation (∞ where fewer than 10 such frames),
-    least and largest value."""
+    """For each marker j with an interior gap of ``MIN_MODEL_GAP`` frames or more: (spread,
+    lo, hi, others) of its distances to the markers ``others`` (all, or its
+    RIGID_CANDIDATES nearest on clips with more markers), over the frames seeing both:
+    standard deviation (∞ where fewer than 10 such frames), least and largest value. In
+    true distances: ``matrix`` plus the rows' ``centre`` (see :func:`blend`). Empty where
+    the rows are not markers. Made beside the candidates' runs (it needs none of them).
+    """
+    if gapset.groups.shape[1] != 3:
+        return {}
+    spans, lengths = gapset.spans, gapset.lengths
+    rows = sorted(set(spans[lengths >= MIN_MODEL_GAP, 0].tolist()))
+    if not rows:
+        return {}
+    P = _xyz(matrix if centre is None else matrix + centre[:, None])
+    seen = observed[0::3].T
     k = P.shape[1]
     near = nearest_markers(P, seen, RIGID_CANDIDATES) if k - 1 > RIGID_CANDIDATES else None
-    coords = [np.where(seen, P[:, :, c], 0.0) for c in range(3)]
-    bands = {}
-    for j in rows:
-        others = np.delete(np.arange(k), j) if near is None else near[j]
-        dist = np.sqrt(sum((x[:, others] - x[:, j:j + 1]) ** 2 for x in coords))
-        both = seen[:, j:j + 1] & seen[:, others]
-        count = both.sum(axis=0)
-        safe = np.maximum(count, 1)
-        mean = np.where(both, dist, 0.0).sum(axis=0) / safe
-        std = np.sqrt(np.where(both, (dist - mean) ** 2, 0.0).sum(axis=0) / safe)
-        lo = np.where(both, dist, np.inf).min(axis=0, initial=np.inf)
-        hi = np.where(both, dist, -np.inf).max(axis=0, initial=-np.inf)
-        bands[j] = (np.where(count >= 10, std, np.inf), lo, hi, others)
-    return bands
+    others = {j: np.delete(np.arange(k), j) if near is None else near[j] for j in rows}
+    measured = distance_rows(P, seen, [(j, others[j]) for j in rows], True, extent=True)
+    return {j: (np.where(count >= 10, std, np.inf), lo, hi, others[j])
+            for j, (count, _, std, lo, hi) in zip(rows, measured)}
 
 
-def _rigid_partner_violations(matrix: np.ndarray, observed: np.ndarray, groups: np.ndarray,
-                              spans: np.ndarray, segments: np.ndarray,
-                              bands: dict) -> np.ndarray:
+def _rigid_partner_violations(matrix: np.ndarray, centre: np.ndarray | None,
+                              observed: np.ndarray, groups: np.ndarray, spans: np.ndarray,
+                              segments: np.ndarray, bands: dict) -> np.ndarray:
     """(gaps, k) True where a candidate's fill of a gap clearly leaves the distance band to
     the gapped marker's rigid partners; ``spans`` (gaps, 3) are gaps of one length,
     ``segments`` (gaps, k, 3, length) the candidates' fills of them.
@@ -806,7 +808,9 @@ def _rigid_partner_violations(matrix: np.ndarray, observed: np.ndarray, groups: 
         if chosen.size == 0:
             continue
         partners = others[chosen]
-        where = matrix[groups[partners]][:, :, a:b]                # (p, 3, length)
+        where = matrix[groups[partners], a:b]                      # (p, 3, length)
+        if centre is not None:
+            where = where + centre[groups[partners]][:, :, None]
         dist = np.sqrt(((segments[index][:, None] - where[None]) ** 2).sum(axis=2))
         margin = PARTNER_MARGIN * spread[chosen][:, None]
         excess = np.maximum(np.maximum(dist - (hi[chosen][:, None] + margin), 0.0),
@@ -1080,13 +1084,20 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     # so the validation runs may go to a process of their own (``apart``, where the
     # process may fork: no thread waits for the interpreter's lock on the other's behalf).
     # The ``optional`` candidates' fills wait for the weights, which need the validation.
+    # The rigid-partner check's distance bands need no candidate: made beside them.
+    centre = None if centre is None else np.asarray(centre, dtype=np.float64)
+    bands_job = partial(_partner_bands, matrix, observed, gapset, centre)
+    bands = None
     if hidden:
         keys = [(kind, i) for i in order for kind in ("trial", "fill")
                 if kind == "trial" or (names[i] not in optional and i not in ran_once)]
-        done = dict(zip(keys, run_all([trials[i] if kind == "trial" else fill_job(i)
+        keys.append(("bands", -1))
+        done = dict(zip(keys, run_all([trials[i] if kind == "trial" else
+                                       fill_job(i) if kind == "fill" else bands_job
                                        for kind, i in keys],
                                       apart=[k for k, (kind, _) in enumerate(keys)
                                              if kind == "trial"])))
+        bands = done.pop(("bands", -1))
         for i in range(len(names)):
             fills[i] = done.get(("fill", i))
             if i in ran_once:
@@ -1103,7 +1114,10 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     later = [i for i in order if fills[i] is None and (names[i] not in optional or used[i])]
     if all(fill is None for fill in fills) and not later:
         later = [names.index(default)]
-    for i, fill in zip(later, run_all([fill_job(i) for i in later])):
+    late = run_all([fill_job(i) for i in later] + ([bands_job] if bands is None else []))
+    if bands is None:
+        bands = late.pop()
+    for i, fill in zip(later, late):
         fills[i] = fill
     ran = [i for i in range(len(names)) if fills[i] is not None]
 
@@ -1120,11 +1134,6 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     spans, lengths = gapset.spans, gapset.lengths
     weight_rows = np.array(gap_weights, dtype=np.float64).reshape(-1, len(names))
     present = np.bincount(lengths, minlength=MIN_MODEL_GAP)[MIN_MODEL_GAP:]
-    bands = None
-    if groups.shape[1] == 3 and present.any():
-        long_gapped = sorted(set(spans[lengths >= MIN_MODEL_GAP, 0].tolist()))
-        at = matrix if centre is None else matrix + np.asarray(centre)[:, None]
-        bands = _partner_bands(_xyz(at), observed[0::3].T, long_gapped)
     for length in (np.flatnonzero(present) + MIN_MODEL_GAP).tolist():
         indices = np.flatnonzero(lengths == length)
         g, a = spans[indices, 0], spans[indices, 1]
@@ -1133,11 +1142,10 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         segments = np.stack([fills[i][rows, frames] for i in ran], axis=1)
         kept = _without_outliers(weight_rows[np.ix_(indices, ran)], segments,
                                  factor=outlier_factor(length))
-        if bands is not None:
-            off = _rigid_partner_violations(at, observed, groups, spans[indices],
+        if bands:
+            off = _rigid_partner_violations(matrix, centre, observed, groups, spans[indices],
                                             segments if centre is None else
-                                            segments + np.asarray(centre)[rows][:, None],
-                                            bands)
+                                            segments + centre[rows][:, None], bands)
             inside = np.where(off, 0.0, kept)
             total = inside.sum(axis=1, keepdims=True)
             kept = np.where(total > 0, inside / np.where(total > 0, total, 1.0), kept)
