@@ -418,7 +418,10 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     averaged over 64 bootstrap resamples of the stand-ins (on dense loss, stand-ins may
     take in real missing frames and are scored on the frames they hide); on each gap of 5
     frames or more, a candidate whose fill is an outlier among the candidates' fills
-    there loses its weight (Hampel's rule on the distances from their median fill).
+    there loses its weight (Hampel's rule on the distances from their median fill), and so
+    does one that moves the marker off its most rigidly attached neighbours (the
+    rigid-partner check of :mod:`.gapwise`, in true distances: the pipeline hands over
+    its rows' centres as ``centre``).
     The TrNN candidate runs once, on the validation mask (``blend``'s ``once``): its fill
     of the real gaps comes from that run, which hides at most ``validation_fraction`` of
     the samples from it, and its second run was the longest job of the blend. Measured
