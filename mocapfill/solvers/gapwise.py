@@ -205,7 +205,8 @@ class ShortRunsFirst:
             out = fill(first, held, **options)
             return None if out is None else np.where(short, first, out)
 
-        run.fills_gaps_alone = fill in FILLS_GAPS_ALONE
+        # (a candidate given its options by functools.partial is still the function)
+        run.fills_gaps_alone = getattr(fill, "func", fill) in FILLS_GAPS_ALONE
         run.__wrapped__ = fill
         return run
 
@@ -303,8 +304,8 @@ def distance_spread(P: np.ndarray, seen: np.ndarray, *, rows: Sequence[int] | No
 
 
 def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
-               min_gap: int = MIN_MODEL_GAP, only: frozenset | None = None
-               ) -> np.ndarray | None:
+               min_gap: int = MIN_MODEL_GAP, only: frozenset | None = None,
+               centre: np.ndarray | None = None) -> np.ndarray | None:
     """Rigid-body fill: move the marker with its most rigidly attached visible markers.
 
     For a gap [a, b) of marker j, the ``donors`` markers observed on [a−1, b] whose
@@ -314,12 +315,20 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
     fill meets both ends exactly. Gaps shorter than ``min_gap`` and gaps without enough
     donors get a linear fill. None when the rows are not markers. With ``only`` (a set of
     (marker, start, stop)), other gaps keep the linear fill (:data:`FILLS_GAPS_ALONE`).
+
+    ``centre`` (rows,): where each row's zero lies in true coordinates, for a matrix whose
+    rows were centred one by one (the pipeline's unit scale). Centring each coordinate
+    on its own mean moves every marker by its own mean position and bends the rigid
+    bodies, so the donors are chosen and the rigid motion fitted on ``matrix + centre``.
+    Measured (the default's blend, ``bench accuracy``): CMU mean 3.605 → 3.174 mm (85_02
+    ml = 60 23.49 → 16.20, 85_12 ml = 40 6.74 → 5.28), walkl 1.9904 → 1.9887 mm.
     """
     groups = row_groups(observed)
     if groups.shape[1] != 3:
         return None
     out = linear_fill(matrix, observed)
-    P = _xyz(np.where(observed, matrix, np.nan))
+    shift = np.zeros(len(matrix)) if centre is None else np.asarray(centre, dtype=np.float64)
+    P = _xyz(np.where(observed, matrix + shift[:, None], np.nan))
     seen = observed[0::3].T                                          # (n, markers)
     gaps = [(j, a, b) for j, a, b in interior_gaps(observed, groups)
             if b - a >= min_gap and (only is None or (j, a, b) in only)]
@@ -336,7 +345,7 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
         for ref, weight in ((a - 1, 1 - s), (b, s)):
             R, t = _kabsch(P[ref, chosen], frames)
             fill += weight[:, None] * (R @ P[ref, j] + t)
-        out[3 * j:3 * j + 3, a:b] = fill.T
+        out[3 * j:3 * j + 3, a:b] = fill.T - shift[3 * j:3 * j + 3, None]
     return out
 
 

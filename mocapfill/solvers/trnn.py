@@ -388,7 +388,8 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
       are worse than the cubic. Only validation can tell which clip is which.
     - ``regression``: local ridge regression on the markers visible during the gap.
     - ``rigid``: rigid-body motion of the three most rigidly attached visible markers
-      (24 mm on 85_02 at ml = 40, where TrNN gives 60 and pca 22).
+      (24 mm on 85_02 at ml = 40, where TrNN gives 60 and pca 22), fitted on the true
+      positions (the pipeline's row centres added back: ``centre``).
     - ``pca``: Gløersen & Federolf (2016), only when the clip has ≥ 60 complete frames
       (it needs them, and is then cheap); joined to the gap ends by the ramp of its
       offsets beside each gap (:func:`mocapfill.solvers.pca.gap_fill`).
@@ -525,7 +526,7 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
     groups = row_groups(observed)
     markers = groups.shape[1] == 3
     if markers:
-        candidates["rigid"] = short_runs_first(rigid_fill)
+        candidates["rigid"] = short_runs_first(partial(rigid_fill, centre=centre))
     if tsmc_offered(observed):
         candidates["tsmc"] = tsmc_fill
     if markers and held_short_runs(observed, groups, MIN_MODEL_GAP,
