@@ -325,9 +325,10 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
     scaled = scale.forward(np.where(observed, matrix, 0.0))
     fn = get_method(method)
     if getattr(fn, "takes_centre", False):
-        # Where each row's zero lies in the unit scale: the blend's rigid-partner check
-        # measures true distances between markers (the row-wise centring shifts each
-        # marker by its own mean and distorts them).
+        # Where each row's zero lies in the unit scale: distances between markers and
+        # rigid bodies are true ones only with it (the row-wise centring moves each
+        # marker by its own mean position). The default's rigid candidate and
+        # rigid-partner check, and the PCA method's distance weights, add it back.
         solver_options = {**solver_options, "centre": scale.centre[:, 0] / scale.scale}
     validation = None
     try:

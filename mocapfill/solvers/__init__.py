@@ -11,7 +11,9 @@ Every method is ``fn(matrix, observed, **options) -> completed``:
   pipeline restores them afterwards.
 
 Methods do not print, do not read files and never depend on units: the pipeline hands
-them rows centred and scaled to unit RMS (see ``mocapfill.pipeline``).
+them rows centred and scaled to unit RMS (see ``mocapfill.pipeline``). A method marked
+``fn.takes_centre`` also gets ``centre=`` (rows,), each row's centre in that scale, for
+what needs the markers' true positions (distances, rigid bodies).
 """
 from __future__ import annotations
 
@@ -61,6 +63,8 @@ def option_parameters(fn: Method) -> dict[str, inspect.Parameter]:
     """
     params = list(inspect.signature(fn).parameters.values())[2:]
     own = {p.name: p for p in params if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
+    if getattr(fn, "takes_centre", False):      # the pipeline's to give, not an option
+        own.pop("centre", None)
     forwards_to = getattr(fn, "forwards_to", None)
     return {**(option_parameters(forwards_to) if forwards_to else {}), **own}
 

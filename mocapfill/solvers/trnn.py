@@ -540,7 +540,8 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
         # combinations from costing one PCA each (validation judges what is left); the
         # windows of long clips get a smaller one (see WINDOW_PCA_MODELS).
         candidates["pca"] = short_runs_first(
-            partial(pca, max_models=WINDOW_PCA_MODELS if skip_unweighted else PCA_MODELS))
+            partial(pca, max_models=WINDOW_PCA_MODELS if skip_unweighted else PCA_MODELS,
+                    centre=centre))
     names = tuple(candidates)
     # A lender with no evidence (a window without gaps, or too few for a stand-in) would
     # leave every gap to the default candidate: the window then validates itself.

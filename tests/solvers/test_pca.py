@@ -200,3 +200,23 @@ def test_distance_spread_of_many_markers_measures_each_row_to_its_nearest():
         if j in (2, 7):
             assert set(np.flatnonzero(measured)) == set(near[j])
             np.testing.assert_allclose(spread[j, near[j]], full[j, near[j]], rtol=1e-12)
+
+
+def test_rows_centred_one_by_one_with_their_centres_fill_as_the_true_positions():
+    # The pipeline centres every row on its own mean; with those centres handed back the
+    # distance weights are the markers' true ones and the fill is that of the true clip.
+    M = coupled_markers(4) + np.random.default_rng(4).normal(scale=5.0, size=(45, 1))
+    observed = np.ones(M.shape, dtype=bool)
+    observed[-3:, 150:300] = False
+    observed[9:12, 200:260] = False
+    centre = np.array([M[r, observed[r]].mean() for r in range(M.shape[0])])
+    centred = masked(M - centre[:, None], observed)
+    true = pca.complete(masked(M, observed), observed)
+    back = pca.complete(centred, observed, centre=centre) + centre[:, None]
+    np.testing.assert_allclose(back[~observed], true[~observed], atol=1e-8)
+    bent = pca.complete(centred, observed) + centre[:, None]
+    assert np.abs(bent[~observed] - true[~observed]).max() > 1e-3
+    # The pipeline's to give, not a user's option.
+    from mocapfill.solvers import option_names
+    assert "centre" not in option_names(pca.complete) and "weight_scale" in option_names(
+        pca.complete)
