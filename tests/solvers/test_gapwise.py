@@ -694,6 +694,21 @@ def test_each_gap_takes_the_blend_of_its_own_weights_and_end_gaps_the_default(
     np.testing.assert_array_equal(filled[ends], truth[ends])
 
 
+def _turning_body(seed: int, n: int, amplitude: float, hz: float, speed: float, *,
+                  offset=(0.0, 0.0, 0.0), bob: float = 0.0) -> np.ndarray:
+    """(18, n) six markers of one rigid body at 120 Hz, turning about the vertical axis
+    (``amplitude`` rad at ``hz``) while moving along x at ``speed`` and bobbing by ``bob``."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 120.0
+    angle = amplitude * np.sin(2 * np.pi * hz * t)
+    c, s = np.cos(angle), np.sin(angle)
+    body = rng.normal(scale=100.0, size=(6, 3)) + offset
+    x = c[None] * body[:, :1] - s[None] * body[:, 1:2] + speed * t[None]
+    y = s[None] * body[:, :1] + c[None] * body[:, 1:2]
+    z = body[:, 2:3] + bob * np.sin(t)[None]
+    return np.stack([x, y, z], axis=1).reshape(18, n)
+
+
 def test_short_gaps_filled_first_give_a_long_gap_its_rigid_donors():
     # Six markers of one rigid body turning and moving smoothly; marker 0 loses 40 frames
     # while each of the others flickers (1–2 frames missing) inside that stretch, so no
@@ -702,16 +717,8 @@ def test_short_gaps_filled_first_give_a_long_gap_its_rigid_donors():
     from mocapfill.solvers.gapwise import ShortRunsFirst, rigid_fill
     from mocapfill.solvers.interp import spline
 
-    rng = np.random.default_rng(0)
     n = 400
-    t = np.arange(n) / 120.0
-    angle = 0.8 * np.sin(2 * np.pi * 0.5 * t)
-    c, s = np.cos(angle), np.sin(angle)
-    body = rng.normal(scale=100.0, size=(6, 3))
-    x = c[None] * body[:, :1] - s[None] * body[:, 1:2] + 50 * t[None]
-    y = s[None] * body[:, :1] + c[None] * body[:, 1:2]
-    z = body[:, 2:3] + 20 * np.sin(t)[None]
-    matrix = np.stack([x, y, z], axis=1).reshape(18, n)
+    matrix = _turning_body(0, n, 0.8, 0.5, 50.0, bob=20.0)
     flicker = [(j, 150 + 7 * j, 150 + 7 * j + 1 + j % 2) for j in range(1, 6)]
     observed = _mask(6, n, [(0, 150, 190), *flicker])
     gap = (slice(0, 3), slice(150, 190))
@@ -743,16 +750,8 @@ def test_rigid_fill_of_row_centred_data_moves_the_marker_with_its_true_body():
     # its own mean position and bends the body.
     from mocapfill.solvers.gapwise import rigid_fill
 
-    rng = np.random.default_rng(1)
     n = 400
-    t = np.arange(n) / 120.0
-    angle = 1.2 * np.sin(2 * np.pi * 0.4 * t)
-    c, s = np.cos(angle), np.sin(angle)
-    body = rng.normal(scale=100.0, size=(6, 3)) + [800.0, 0.0, 900.0]
-    x = c[None] * body[:, :1] - s[None] * body[:, 1:2] + 300 * t[None]
-    y = s[None] * body[:, :1] + c[None] * body[:, 1:2]
-    z = np.repeat(body[:, 2:3], n, axis=1)
-    truth = np.stack([x, y, z], axis=1).reshape(18, n)
+    truth = _turning_body(1, n, 1.2, 0.4, 300.0, offset=(800.0, 0.0, 900.0))
     observed = _mask(6, n, [(0, 150, 210)])
     centre = np.array([truth[r, observed[r]].mean() for r in range(18)])
     centred = np.where(observed, truth - centre[:, None], 0.0)
@@ -841,6 +840,11 @@ def _partner_blend(fills: dict, prior: dict, gap=(0, 150, 180), **options):
     return truth, filled[3 * j:3 * j + 3, a:b], truth[3 * j:3 * j + 3, a:b]
 
 
+def _three_fills(off: float, half: float) -> dict:
+    """The truth, and bumps of ``off`` and ``half`` on the gap (see :func:`_bump`)."""
+    return {"good": lambda t: t.copy(), "off": _bump(off), "half": _bump(half)}
+
+
 def _bump(size: float, gap=(0, 150, 180)):
     """A fill of marker 0 pushed ``size`` off the truth along x in the middle of the gap
     (0 at its ends), the rest the truth."""
@@ -859,9 +863,8 @@ def test_a_fill_that_leaves_its_rigid_partners_loses_its_weight():
     # the other two lie equally far from it), but the two pushed off leave the band of
     # distances to the body's other markers (which vary by ~0.003 over the clip): the
     # truth alone fills the gap.
-    fills = {"good": lambda t: t.copy(), "off": _bump(0.2), "half": _bump(0.1)}
-    prior = {"good": 0.2, "off": 0.4, "half": 0.4}
-    _, gap_fill, gap_truth = _partner_blend(fills, prior)
+    fills = _three_fills(0.2, 0.1)
+    _, gap_fill, gap_truth = _partner_blend(fills, {"good": 0.2, "off": 0.4, "half": 0.4})
     np.testing.assert_allclose(gap_fill, gap_truth, atol=1e-12)
     segments = np.stack([f(_rigid_clip())[0:3, 150:180] for f in fills.values()])
     np.testing.assert_array_equal(_one_gap([0.2, 0.4, 0.4], list(segments), factor=2.0),
@@ -871,27 +874,21 @@ def test_a_fill_that_leaves_its_rigid_partners_loses_its_weight():
 def test_the_partner_check_measures_true_distances_given_the_rows_centres():
     # The blend sees the unit scale's rows, each centred on its own mean: the distances
     # between markers are those of the data only with the centres added back.
-    fills = {"good": lambda t: t.copy(), "off": _bump(0.2), "half": _bump(0.1)}
-    prior = {"good": 0.2, "off": 0.4, "half": 0.4}
     shift = np.random.default_rng(3).normal(size=15)
-    _, gap_fill, gap_truth = _partner_blend(fills, prior, shift=shift)
+    _, gap_fill, gap_truth = _partner_blend(_three_fills(0.2, 0.1),
+                                            {"good": 0.2, "off": 0.4, "half": 0.4}, shift=shift)
     np.testing.assert_allclose(gap_fill, gap_truth, atol=1e-12)
 
 
-def test_when_every_weighted_fill_leaves_the_partners_the_weights_stand():
-    fills = {"good": lambda t: t.copy(), "off": _bump(0.2), "half": _bump(0.1)}
-    prior = {"good": 0.0, "off": 0.5, "half": 0.5}
-    _, gap_fill, gap_truth = _partner_blend(fills, prior)
-    expected = gap_truth.copy()
-    expected[0] += 0.15 * np.sin(np.pi * np.arange(1, 31) / 31)
-    np.testing.assert_allclose(gap_fill, expected, atol=1e-12)
-
-
-def test_fills_within_the_partners_band_keep_their_weights():
+@pytest.mark.parametrize("off, half, prior, bump", [
+    # Every weighted fill leaves the partners' band: the weights stand.
+    (0.2, 0.1, {"good": 0.0, "off": 0.5, "half": 0.5}, 0.15),
     # Fills 0.001 apart (under the noise) all stay in the band: the blend is unchanged.
-    fills = {"good": lambda t: t.copy(), "off": _bump(0.001), "half": _bump(0.0005)}
-    prior = {"good": 0.2, "off": 0.4, "half": 0.4}
-    _, gap_fill, gap_truth = _partner_blend(fills, prior)
+    (0.001, 0.0005, {"good": 0.2, "off": 0.4, "half": 0.4}, 0.0006),
+])
+def test_the_weights_stand_where_no_fill_or_every_weighted_fill_leaves_the_band(
+        off, half, prior, bump):
+    _, gap_fill, gap_truth = _partner_blend(_three_fills(off, half), prior)
     expected = gap_truth.copy()
-    expected[0] += 0.0006 * np.sin(np.pi * np.arange(1, 31) / 31)
+    expected[0] += bump * np.sin(np.pi * np.arange(1, 31) / 31)
     np.testing.assert_allclose(gap_fill, expected, atol=1e-12)
