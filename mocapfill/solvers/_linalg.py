@@ -289,28 +289,30 @@ def times_spd_inverse(B: np.ndarray, A: np.ndarray) -> np.ndarray:
     return B @ np.linalg.inv(A)
 
 
-def pair_distances(points: np.ndarray, seen: np.ndarray, *, spread: bool = True
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+def pair_distances(points: np.ndarray, seen: np.ndarray, *, spread: bool = True,
+                   extent: bool = False) -> tuple:
     """Statistics of the distance between every two markers over the frames seeing both.
 
     ``points`` is (frames, markers, 3), ``seen`` (frames, markers) bool; unobserved points
     may hold anything. Returns (count, mean, std), each (markers, markers) and symmetric:
     the number of frames where both markers are observed, the mean distance over them and
     its standard deviation (None unless ``spread``); mean and std are 0 where the count
-    is 0. Each pair is computed once (half of a row-by-row loop) from the three
+    is 0. With ``extent``, also (lo, hi): the least and largest distance (∞ and −∞ where
+    the count is 0). Each pair is computed once (half of a row-by-row loop) from the three
     coordinates held separately, with no (frames × markers × 3) temporaries.
     """
     k = points.shape[1]
     count = np.zeros((k, k), dtype=np.int64)
-    mean = np.zeros((k, k))
-    std = np.zeros((k, k)) if spread else None
-    rows = distance_rows(points, seen, [(j, slice(j, None)) for j in range(k)], spread)
-    for j, (n_both, m, s) in enumerate(rows):
+    tables = [np.zeros((k, k)) for _ in range(1 + spread + 2 * extent)]
+    rows = distance_rows(points, seen, [(j, slice(j, None)) for j in range(k)], spread,
+                         extent=extent)
+    for j, (n_both, *values) in enumerate(rows):
         count[j, j:] = count[j:, j] = n_both
-        mean[j, j:] = mean[j:, j] = m
-        if spread:
-            std[j, j:] = std[j:, j] = s
-    return count, mean, std
+        for table, value in zip(tables, [v for v in values if v is not None]):
+            table[j, j:] = table[j:, j] = value
+    mean, *rest = tables
+    std = rest.pop(0) if spread else None
+    return (count, mean, std, *rest)
 
 
 def distance_rows(points: np.ndarray, seen: np.ndarray, rows: list, spread: bool, *,

@@ -783,7 +783,12 @@ def _partner_bands(matrix: np.ndarray, observed: np.ndarray, gapset: GapSet,
     k = P.shape[1]
     near = nearest_markers(P, seen, RIGID_CANDIDATES) if k - 1 > RIGID_CANDIDATES else None
     others = {j: np.delete(np.arange(k), j) if near is None else near[j] for j in rows}
-    measured = distance_rows(P, seen, [(j, others[j]) for j in rows], True, extent=True)
+    if near is None and 2 * len(rows) > k:
+        # Most markers gapped (the windows of long clips): every pair once, not twice.
+        tables = pair_distances(P, seen, extent=True)
+        measured = ([table[j, others[j]] for table in tables] for j in rows)
+    else:
+        measured = distance_rows(P, seen, [(j, others[j]) for j in rows], True, extent=True)
     return {j: (np.where(count >= 10, std, np.inf), lo, hi, others[j])
             for j, (count, _, std, lo, hi) in zip(rows, measured)}
 
