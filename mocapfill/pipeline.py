@@ -321,6 +321,9 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
     With ``borrowed`` (a list, possibly empty) the method's ``windowed`` form is called
     with those validations and (fill, validation) is returned.
     """
+    if "centre" in solver_options:
+        raise ParameterError("'centre' is not an option: the rows' centres are the unit "
+                             "scale's, set here")
     scale = UnitScale.fit(matrix, observed)
     scaled = scale.forward(np.where(observed, matrix, 0.0))
     fn = get_method(method)

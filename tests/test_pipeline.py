@@ -760,3 +760,18 @@ def test_small_windows_are_solved_side_by_side_large_ones_one_at_a_time(monkeypa
     expected = pipeline.complete_matrix(matrix, observed, "spline", window_frames=1000,
                                         window_overlap=200)
     np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("method", ["trnn", "pca"])
+def test_the_rows_centres_are_the_pipelines_not_an_option(method):
+    # The methods marked takes_centre get each row's centre in the unit scale from the
+    # pipeline; one given by hand would be overridden, so it is refused.
+    from mocapfill.pipeline import complete_matrix
+
+    with pytest.raises(ParameterError, match="centre"):
+        RepairOptions(method=method, solver_options={"centre": [0.0] * 6})
+    matrix = np.random.default_rng(0).normal(size=(6, 100))
+    observed = np.ones(matrix.shape, dtype=bool)
+    observed[0:3, 40:50] = False
+    with pytest.raises(ParameterError, match="'centre' is not an option"):
+        complete_matrix(matrix, observed, method, centre=np.zeros(6))
