@@ -793,12 +793,22 @@ def _partner_bands(matrix: np.ndarray, observed: np.ndarray, gapset: GapSet,
             for j, (count, _, std, lo, hi) in zip(rows, measured)}
 
 
+def _seen_before(observed: np.ndarray) -> np.ndarray:
+    """(markers, n + 1): how many frames before each frame see each marker (a marker is
+    seen on [a, b) when the difference of its counts at b and a is b − a)."""
+    seen = observed[0::3]
+    before = np.zeros((seen.shape[0], seen.shape[1] + 1), dtype=np.int32)
+    np.cumsum(seen, axis=1, out=before[:, 1:])
+    return before
+
+
 def _rigid_partner_violations(matrix: np.ndarray, centre: np.ndarray | None,
-                              observed: np.ndarray, groups: np.ndarray, spans: np.ndarray,
+                              before: np.ndarray, groups: np.ndarray, spans: np.ndarray,
                               segments: np.ndarray, bands: dict) -> np.ndarray:
     """(gaps, k) True where a candidate's fill of a gap clearly leaves the distance band to
     the gapped marker's rigid partners; ``spans`` (gaps, 3) are gaps of one length,
-    ``segments`` (gaps, k, 3, length) the candidates' fills of them.
+    ``segments`` (gaps, k, 3, length) the candidates' fills of them, ``before`` the clip's
+    :func:`_seen_before` (made once for all lengths).
 
     The partners of a gap [a, b) of marker j are, as :func:`rigid_fill` chooses its
     donors, the RIGID_PARTNERS markers observed on [a−1, b] whose distance to j varies
@@ -810,9 +820,6 @@ def _rigid_partner_violations(matrix: np.ndarray, centre: np.ndarray | None,
     """
     gaps, k, _, length = segments.shape
     out = np.zeros((gaps, k), dtype=bool)
-    seen = observed[0::3]                                           # (markers, n)
-    before = np.zeros((seen.shape[0], seen.shape[1] + 1), dtype=np.int32)
-    np.cumsum(seen, axis=1, out=before[:, 1:])
     for index, (j, a, b) in enumerate(spans.tolist()):
         spread, lo, hi, others = bands[j]
         usable = before[others, b + 1] - before[others, a - 1] == b - a + 2
@@ -1148,6 +1155,7 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     spans, lengths = gapset.spans, gapset.lengths
     weight_rows = np.array(gap_weights, dtype=np.float64).reshape(-1, len(names))
     present = np.bincount(lengths, minlength=MIN_MODEL_GAP)[MIN_MODEL_GAP:]
+    seen_before = _seen_before(observed) if bands else None
     for length in (np.flatnonzero(present) + MIN_MODEL_GAP).tolist():
         indices = np.flatnonzero(lengths == length)
         g, a = spans[indices, 0], spans[indices, 1]
@@ -1157,7 +1165,8 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         kept = _without_outliers(weight_rows[np.ix_(indices, ran)], segments,
                                  factor=outlier_factor(length))
         if bands:
-            off = _rigid_partner_violations(matrix, centre, observed, groups, spans[indices],
+            off = _rigid_partner_violations(matrix, centre, seen_before, groups,
+                                            spans[indices],
                                             segments if centre is None else
                                             segments + centre[rows][:, None], bands)
             inside = np.where(off, 0.0, kept)
