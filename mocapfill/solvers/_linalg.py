@@ -321,25 +321,56 @@ def distance_rows(points: np.ndarray, seen: np.ndarray, rows: list, spread: bool
     the frames seeing both, mean and std (None unless ``spread``) of the distance from
     marker j to each of ``others``, as :func:`pair_distances` defines them; with
     ``extent``, also its least and largest value over those frames (∞ and −∞ where
-    there is none).
+    there is none). A generator; the statistics come as float64.
 
-    A generator, so that one row's temporaries are still held while the next is
-    computed: freed at every return of a function, the same loop took twice as long
-    (85_12: 75 against 36 ms), the allocator handing the pages back and faulting them in
-    again for every row.
+    The distances are taken frame by frame in float32, from coordinates shifted by one
+    offset per axis (the mean of the seen samples, the same for every marker, so no
+    distance changes and the float32 values stay near the body's own size), one row at a
+    time in buffers made once, the markers along the rows. They agree with float64's to
+    a few parts in 10⁷ (the least distances, the smallest figures, to 6e−6), and took 11–20
+    instead of 31–46 ms for every pair of 85_12's 41 markers over 4,499 frames (mean;
+    with the spread; with the extent). The blend makes them up to five times per clip
+    (the rigid fill's spreads and PCA's means on both masks, the partner bands).
     """
-    coords = _seen_coordinates(points, seen)
+    n, k, _ = points.shape
+    seen_rows = np.ascontiguousarray(seen.T)                      # (markers, frames)
+    coords = np.empty((3, k, n), dtype=np.float32)
+    for c in range(3):
+        x = points[:, :, c].T
+        shift = float(x[seen_rows].mean()) if seen_rows.any() else 0.0
+        np.copyto(coords[c], np.where(seen_rows, x - shift, 0.0), casting="same_kind")
+    squares = np.empty_like(coords)
+    both_buffer = np.empty((k, n), dtype=bool)
+    spare = np.empty((k, n), dtype=np.float32)
     for j, others in rows:
-        dist = np.sqrt(sum((x[:, others] - x[:, j:j + 1]) ** 2 for x in coords))
-        both = seen[:, j:j + 1] & seen[:, others]
-        n_both = both.sum(axis=0)
+        q = np.arange(k)[others].size
+        both = np.logical_and(seen_rows[others], seen_rows[j], out=both_buffer[:q])
+        parts = squares[:, :q]
+        np.subtract(coords[:, others], coords[:, j:j + 1], out=parts)
+        np.square(parts, out=parts)
+        dist = parts[0]
+        dist += parts[1]
+        dist += parts[2]
+        np.sqrt(dist, out=dist)
+        n_both = np.count_nonzero(both, axis=1)
         safe = np.maximum(n_both, 1)
-        m = np.where(both, dist, 0.0).sum(axis=0) / safe
-        s = (np.sqrt(np.where(both, (dist - m) ** 2, 0.0).sum(axis=0) / safe) if spread
-             else None)
+        dist *= both
+        m = dist.sum(axis=1).astype(np.float64) / safe
+        s = None
+        t = spare[:q]
+        if spread:
+            np.subtract(dist, m[:, None].astype(np.float32), out=t)
+            t *= both
+            np.square(t, out=t)
+            s = np.sqrt(t.sum(axis=1).astype(np.float64) / safe)
         if extent:
-            yield (n_both, m, s, np.where(both, dist, np.inf).min(axis=0, initial=np.inf),
-                   np.where(both, dist, -np.inf).max(axis=0, initial=-np.inf))
+            t.fill(np.inf)
+            np.copyto(t, dist, where=both)
+            lo = t.min(axis=1, initial=np.inf).astype(np.float64)
+            np.negative(t, out=t)                   # −∞ where unseen
+            np.copyto(t, dist, where=both)
+            hi = t.max(axis=1, initial=-np.inf).astype(np.float64)
+            yield n_both, m, s, lo, hi
         else:
             yield n_both, m, s
 
