@@ -317,6 +317,31 @@ LOWRANK_TOL = 1e-4
 PCA_MODELS = 8
 WINDOW_PCA_MODELS = 4
 
+# The PCA candidate is offered on clips with 60 complete frames or more (counted with the
+# short gaps filled), and on the others where they have at most this many gaps of 5
+# frames or more. Without complete frames its models drop the predictors gapped with
+# the marker, and it costs about 1 ms per gap (31–53 markers). Offered on the replay of
+# 1,557 hidden gaps on 18 real clips (docs/results.md, thirtieth session): JA1Gait35
+# (324 frames, 53 markers, 20 gaps, 0.06 s per run) 8.92 → 5.46 mm mean error, its
+# catastrophic fills 5 → 0; the OptiTrack racing clip 2.85 → 2.46 mm; nothing else
+# moved. On random loss (the bench's mr = 0.6 cells, 822–6,085 such gaps) it took
+# 0.7–5.4 s per run, the benchmark's random-loss repairs 86 → 153 s, and moved those
+# cells by 0.002 mm at most; the bench's 300-marker clip (2,047 gaps) 4.6 s per run.
+PCA_GAPS_WITHOUT_COMPLETE = 500
+
+
+def pca_offered(observed: np.ndarray, groups: np.ndarray) -> bool:
+    """Whether the default's blend runs the PCA candidate on this mask of markers
+    (``groups``: :func:`~mocapfill.solvers.gapwise.row_groups`, three rows each): with 60
+    complete frames or more, counted with the gaps under ``MIN_MODEL_GAP`` frames filled
+    (flicker leaves none otherwise), where it is cheap; otherwise where the clip has at
+    most :data:`PCA_GAPS_WITHOUT_COMPLETE` interior gaps of that length or more."""
+    from .gapwise import MIN_MODEL_GAP, held_short_runs, interior_gaps
+
+    held = held_short_runs(observed, groups, MIN_MODEL_GAP, ends=False)
+    return bool(held.all(axis=0).sum() >= 60
+                or len(interior_gaps(held, groups)) <= PCA_GAPS_WITHOUT_COMPLETE)
+
 # The order in which the blend starts its candidates' runs (``blend``'s ``costly``): the
 # longest first, as measured on the benchmark's and the shared data's clips, so that
 # neither core is left alone with a long run at the end. The Gaussian EM costs most where
@@ -390,9 +415,9 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     - ``rigid``: rigid-body motion of the three most rigidly attached visible markers
       (24 mm on 85_02 at ml = 40, where TrNN gives 60 and pca 22), fitted on the true
       positions (the pipeline's row centres added back: ``centre``).
-    - ``pca``: Gløersen & Federolf (2016), only when the clip has ≥ 60 complete frames
-      (it needs them, and is then cheap); joined to the gap ends by the ramp of its
-      offsets beside each gap (:func:`mocapfill.solvers.pca.gap_fill`).
+    - ``pca``: Gløersen & Federolf (2016), where the clip has ≥ 60 complete frames (it is
+      then cheap) or at most 500 gaps (:func:`pca_offered`); joined to the gap ends by
+      the ramp of its offsets beside each gap (:func:`mocapfill.solvers.pca.gap_fill`).
     - ``regression``, ``rigid`` and ``pca`` see the gaps under 5 frames filled first by
       the cubic spline (:class:`~mocapfill.solvers.gapwise.ShortRunsFirst`; complete
       frames are counted so too): flicker otherwise leaves a long gap without a donor or
@@ -486,11 +511,9 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
     from functools import partial
 
     from .gapwise import (
-        MIN_MODEL_GAP,
         ShortRunsFirst,
         Validation,
         blend,
-        held_short_runs,
         odd_spline_fill,
         regression_fill,
         rigid_fill,
@@ -529,11 +552,8 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
         candidates["rigid"] = short_runs_first(partial(rigid_fill, centre=centre))
     if tsmc_offered(observed):
         candidates["tsmc"] = tsmc_fill
-    if markers and held_short_runs(observed, groups, MIN_MODEL_GAP,
-                                   ends=False).all(axis=0).sum() >= 60:
-        # Gløersen & Federolf's PCA fill needs complete frames, counted with the short gaps
-        # filled (flicker leaves none otherwise); where the clip has them it is cheap and
-        # its errors are partly independent of TrNN's.
+    if markers and pca_offered(observed, groups):
+        # Gløersen & Federolf's PCA fill: its errors are partly independent of TrNN's.
         from .pca import gap_fill as pca
 
         # A budget of PCA models per marker keeps clips with gaps overlapping in many

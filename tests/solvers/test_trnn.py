@@ -443,6 +443,42 @@ def test_the_default_blends_tsmc_on_scattered_loss_only(monkeypatch):
         assert np.isfinite(filled).all()
 
 
+def _staggered_gaps(markers: int, n: int, length: int, period: int, shift: int
+                    ) -> np.ndarray:
+    """A mask where marker j misses ``length`` frames every ``period`` frames, from frame
+    10 + ``shift``·j on (interior gaps only)."""
+    observed = np.ones((3 * markers, n), dtype=bool)
+    for j in range(markers):
+        for start in range(10 + shift * j, n - length - 10, period):
+            observed[3 * j:3 * j + 3, start:start + length] = False
+    return observed
+
+
+def test_pca_is_offered_without_complete_frames_where_its_gaps_are_few(monkeypatch):
+    from mocapfill.solvers.gapwise import interior_gaps, row_groups
+    from mocapfill.solvers.trnn import PCA_GAPS_WITHOUT_COMPLETE, pca_offered
+
+    # Four markers each losing 80 frames in turn: no complete frame from frame 10 to
+    # 284, and 4 gaps. PCA drops the gapped predictors and is offered.
+    few = _staggered_gaps(4, 300, 80, 300, 65)
+    assert few.all(axis=0).sum() < 60
+    assert pca_offered(few, row_groups(few))
+    calls = _spied_blend(monkeypatch)
+    filled = complete(_sines(2), few)
+    assert "pca" in calls[-1][0]
+    np.testing.assert_array_equal(filled[few], _sines(2)[few])
+    # 41 markers losing 5 frames every 60: no complete frame and 656 gaps, where PCA
+    # would build up to 8 models per marker for little (random loss: 0.7-5.4 s per run).
+    many = _staggered_gaps(41, 1000, 5, 60, 3)
+    groups = row_groups(many)
+    assert many.all(axis=0).sum() < 60 and len(interior_gaps(many, groups)) > \
+        PCA_GAPS_WITHOUT_COMPLETE
+    assert not pca_offered(many, groups)
+    # With 60 complete frames it is offered whatever the gaps.
+    many[:, 500:560] = True
+    assert pca_offered(many, groups)
+
+
 def test_the_default_starts_its_costly_candidates_first(monkeypatch):
     from mocapfill.solvers.trnn import RUN_ORDER
 
