@@ -318,29 +318,39 @@ PCA_MODELS = 8
 WINDOW_PCA_MODELS = 4
 
 # The PCA candidate is offered on clips with 60 complete frames or more (counted with the
-# short gaps filled), and on the others where they have at most this many gaps of 5
-# frames or more. Without complete frames its models drop the predictors gapped with
-# the marker, and it costs about 1 ms per gap (31–53 markers). Offered on the replay of
-# 1,557 hidden gaps on 18 real clips (docs/results.md, thirtieth session): JA1Gait35
-# (324 frames, 53 markers, 20 gaps, 0.06 s per run) 8.92 → 5.46 mm mean error, its
-# catastrophic fills 5 → 0; the OptiTrack racing clip 2.85 → 2.46 mm; nothing else
-# moved. On random loss (the bench's mr = 0.6 cells, 822–6,085 such gaps) it took
-# 0.7–5.4 s per run, the benchmark's random-loss repairs 86 → 153 s, and moved those
-# cells by 0.002 mm at most; the bench's 300-marker clip (2,047 gaps) 4.6 s per run.
-PCA_GAPS_WITHOUT_COMPLETE = 500
+# short gaps filled), and on the others where its models are few: at most this many
+# distinct sets of visible markers over the missing frames of the gapped markers (its
+# predictor searches and models are per such set; 0.1–0.35 ms each, measured). Offered so
+# on the replay of 1,557 hidden gaps on 18 real clips (docs/results.md, thirtieth
+# session): JA1Gait35 (324 frames, 53 markers, 94 sets, 0.06 s per run) 8.92 → 5.46 mm
+# mean error, its catastrophic fills 5 → 0; the OptiTrack racing clip (574 sets)
+# 2.85 → 2.46 mm; nothing else moved. Left out: random loss (the bench's mr = 0.6 cells,
+# 4,966–16,019 sets, 0.7–3.9 s per run, their fills moved by 0.002 mm at most), a
+# 48-marker clip whose markers all come and go (ktk-duplicate_labels, 2,730 sets: its
+# repair 0.61 → 1.04 s), the bench's 300-marker clip.
+PCA_PATTERNS_WITHOUT_COMPLETE = 1000
 
 
 def pca_offered(observed: np.ndarray, groups: np.ndarray) -> bool:
     """Whether the default's blend runs the PCA candidate on this mask of markers
     (``groups``: :func:`~mocapfill.solvers.gapwise.row_groups`, three rows each): with 60
     complete frames or more, counted with the gaps under ``MIN_MODEL_GAP`` frames filled
-    (flicker leaves none otherwise), where it is cheap; otherwise where the clip has at
-    most :data:`PCA_GAPS_WITHOUT_COMPLETE` interior gaps of that length or more."""
-    from .gapwise import MIN_MODEL_GAP, held_short_runs, interior_gaps
+    (flicker leaves none otherwise), where it is cheap; otherwise where it has at most
+    :data:`PCA_PATTERNS_WITHOUT_COMPLETE` sets of visible markers to model."""
+    from .gapwise import MIN_MODEL_GAP, held_short_runs
 
     held = held_short_runs(observed, groups, MIN_MODEL_GAP, ends=False)
-    return bool(held.all(axis=0).sum() >= 60
-                or len(interior_gaps(held, groups)) <= PCA_GAPS_WITHOUT_COMPLETE)
+    if held.all(axis=0).sum() >= 60:
+        return True
+    seen = held[groups[:, 0]]                                   # (markers, frames)
+    patterns = 0
+    for i in np.flatnonzero(seen.any(axis=1) & ~seen.all(axis=1)):
+        visible = np.packbits(seen[:, ~seen[i]], axis=0)        # the others, per frame
+        patterns += np.unique(visible, axis=1).shape[1]
+        if patterns > PCA_PATTERNS_WITHOUT_COMPLETE:
+            return False
+    return True
+
 
 # The order in which the blend starts its candidates' runs (``blend``'s ``costly``): the
 # longest first, as measured on the benchmark's and the shared data's clips, so that
@@ -416,7 +426,7 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
       (24 mm on 85_02 at ml = 40, where TrNN gives 60 and pca 22), fitted on the true
       positions (the pipeline's row centres added back: ``centre``).
     - ``pca``: Gløersen & Federolf (2016), where the clip has ≥ 60 complete frames (it is
-      then cheap) or at most 500 gaps (:func:`pca_offered`); joined to the gap ends by
+      then cheap) or few models to make (:func:`pca_offered`); joined to the gap ends by
       the ramp of its offsets beside each gap (:func:`mocapfill.solvers.pca.gap_fill`).
     - ``regression``, ``rigid`` and ``pca`` see the gaps under 5 frames filled first by
       the cubic spline (:class:`~mocapfill.solvers.gapwise.ShortRunsFirst`; complete
