@@ -338,6 +338,7 @@ def pca_offered(observed: np.ndarray, groups: np.ndarray) -> bool:
     (flicker leaves none otherwise), where it is cheap; otherwise where it has at most
     :data:`PCA_PATTERNS_WITHOUT_COMPLETE` sets of visible markers to model."""
     from .gapwise import MIN_MODEL_GAP, held_short_runs
+    from .pca import _patterns
 
     held = held_short_runs(observed, groups, MIN_MODEL_GAP, ends=False)
     if held.all(axis=0).sum() >= 60:
@@ -345,8 +346,8 @@ def pca_offered(observed: np.ndarray, groups: np.ndarray) -> bool:
     seen = held[groups[:, 0]]                                   # (markers, frames)
     patterns = 0
     for i in np.flatnonzero(seen.any(axis=1) & ~seen.all(axis=1)):
-        visible = np.packbits(seen[:, ~seen[i]], axis=0)        # the others, per frame
-        patterns += np.unique(visible, axis=1).shape[1]
+        # (marker i's own row, unseen on those frames, adds no set)
+        patterns += len(_patterns(seen[:, ~seen[i]])[0])
         if patterns > PCA_PATTERNS_WITHOUT_COMPLETE:
             return False
     return True
