@@ -238,3 +238,28 @@ def test_rows_centred_one_by_one_with_their_centres_fill_as_the_true_positions()
     from mocapfill.solvers import option_names
     assert "centre" not in option_names(pca.complete) and "weight_scale" in option_names(
         pca.complete)
+
+
+def test_models_from_the_complete_frames_sums_equal_models_from_their_own_frames():
+    # Each model's Gram matrix is the complete frames' (summed once) plus its few other
+    # training frames: the same model as one computed over all its frames.
+    M = coupled_markers(3)
+    observed = np.ones(M.shape, dtype=bool)
+    observed[-3:, 150:300] = False
+    observed[-6:-3, 250:400] = False            # overlaps: the first one's fallback
+    observed[:3, 380:420] = False               # a third, elsewhere
+    X = np.where(observed, M, np.nan).T
+    mask = observed[::3]
+    complete = mask.all(axis=0)
+    moments = pca._Moments(X, complete)
+    weights = np.append(np.linspace(1.0, 0.2, 12), 0.02)     # predictors, then its own
+    predictors = list(range(12))                # marker 13 gapped on 250:400 is left out
+    train = np.flatnonzero(mask[predictors + [14]].all(axis=0))
+    assert 0 < (~complete[train]).sum() < len(train) / 2
+    direct = pca._model(X, 14, predictors, train, weights, 0.99, "published")
+    summed = pca._model(X, 14, predictors, train, weights, 0.99, "published", moments)
+    for a, b in zip(direct, summed):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+    # Where the complete frames are not most of the training frames, the model is made
+    # from its own frames.
+    assert moments.centred(X, train[~complete[train]], np.arange(6)) is None
