@@ -209,6 +209,10 @@ def test_distance_spread_of_many_markers_measures_each_row_to_its_nearest():
     np.fill_diagonal(full, np.inf)
     # Few enough markers: every pair, as before.
     np.testing.assert_array_equal(distance_spread(points, seen, candidates=8), full)
+    # Few enough markers, some rows: those rows whole, the same values, the others ∞.
+    rows = distance_spread(points, seen, rows=[1, 6], candidates=8)
+    np.testing.assert_array_equal(rows[[1, 6]], full[[1, 6]])
+    assert np.isinf(np.delete(rows, [1, 6], axis=0)).all()
     # More: only the rows asked for, each to its 4 nearest, with the same values.
     near = nearest_markers(points, seen, 4)
     spread = distance_spread(points, seen, rows=[2, 7], candidates=4)
