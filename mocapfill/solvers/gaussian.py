@@ -353,5 +353,8 @@ def gap_fill(matrix: np.ndarray, observed: np.ndarray, *, min_gap: int = 5,
         return base
     start = low_rank_start(base, held, rank=paper_rank(base, held, rank))
     filled = fit_normal(base, held, start=start, **fit_options).filled
-    return join_ends(_smooth(filled, sigma), base, held,
+    # Only the rows with gaps are read from the smoothed fill (the others are the data).
+    gapped = np.flatnonzero(~held.all(axis=1))
+    filled[gapped] = _smooth(filled[gapped], sigma)
+    return join_ends(filled, base, held,
                      GapSet(groups, interior_gaps(held, groups)))
