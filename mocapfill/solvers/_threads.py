@@ -130,85 +130,162 @@ def _run_apart(jobs: Sequence[Callable[[], T]], apart: Sequence[int], threads: i
     those left once its own are done (so neither core waits on the other's last jobs).
     The child inherits the jobs and their inputs (nothing is copied until written) and
     sends back its results through a pipe, pickled: hence small results only (the blend
-    sends its validation errors, and keeps the full fills here). ``multiprocessing``
-    flushes standard output and error before the fork, so the child does not write this
-    process's buffered text a second time (tested). An exception raised by a child's job
-    is raised here (as a RuntimeError with its message where it cannot be pickled); if
-    the child dies without an answer (killed, out of memory), its jobs run here; where no
-    child can be started, threads run them all.
-    """
-    import multiprocessing
+    sends its validation errors, and keeps the full fills here). Standard output and
+    error are flushed before the fork, so the child does not write this process's
+    buffered text a second time (tested), and the child leaves by ``os._exit``. An
+    exception raised by a child's job is raised here (as a RuntimeError with its message
+    where it cannot be pickled); if the child dies without an answer (killed, out of
+    memory), its jobs run here; where no child can be started, threads run them all.
 
+    The child is made by ``os.fork`` itself, the jobs handed out through a pipe
+    (:class:`_Tickets`): ``multiprocessing``'s import, shared counter and process start
+    took 23–30 ms of every repair's serial path, a fork and two pipes 1–1.5 ms (and a
+    shared counter needs POSIX semaphores, which some containers lack).
+    """
     away = set(apart)
     mine = [k for k in range(len(jobs)) if k not in away]
     sent = [jobs[k] for k in apart]
     child_threads = max(1, threads // 2)
-    context = multiprocessing.get_context("fork")
-    # Where there are no working semaphores (sem_open: some containers), or the fork is
-    # refused (a process limit, no memory to map), the threads do the work.
     try:
-        ticket = context.Value("i", 0)         # the next job apart not yet taken
-    except (OSError, ImportError):
+        tickets = _Tickets(len(sent))
+    except (OSError, ValueError):           # no pipe (out of descriptors), too many jobs
         return _run_threaded(jobs, threads)
-    receiver, sender = context.Pipe(duplex=False)
-    child = context.Process(target=_child, args=(sent, ticket, child_threads, sender,
-                                                 os.getpid()),
-                            name="mocapfill-apart", daemon=True)
     try:
-        child.start()
+        receiver, sender = os.pipe()
     except OSError:
-        receiver.close()
-        sender.close()
+        tickets.close()
         return _run_threaded(jobs, threads)
-    sender.close()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (AttributeError, OSError, ValueError):       # None, closed, broken pipe
+            pass
+    parent = os.getpid()
+    try:
+        child = os.fork()
+    except OSError:                         # a process limit, no memory to map
+        for fd in (receiver, sender):
+            os.close(fd)
+        tickets.close()
+        return _run_threaded(jobs, threads)
+    if child == 0:
+        try:
+            os.close(receiver)
+            _child(sent, tickets, child_threads, sender, parent)
+        finally:
+            os._exit(0)
+    os.close(sender)
     try:
         results = dict(zip(mine, run_all([jobs[k] for k in mine],
                                          max(1, threads - child_threads))))
         # Then the jobs apart that the child has not taken yet, here.
         here: dict[int, T] = {}
-        _taking(sent, ticket, here)()
-        try:
-            status, value = receiver.recv()
-        except EOFError:                        # the child died without an answer
+        _taking(sent, tickets, here)()
+        answer = _read_all(receiver)
+        if answer:
+            status, value = pickle.loads(answer)
+        else:                                   # the child died without an answer
             rest = [k for k in range(len(sent)) if k not in here]
             status, value = "ok", dict(zip(rest, run_all([sent[k] for k in rest], threads)))
         if status != "ok":
             raise value
         results.update((apart[k], v) for k, v in {**here, **value}.items())
     finally:
-        receiver.close()
-        if child.is_alive():
-            child.terminate()
-        child.join()
+        os.close(receiver)
+        tickets.close()
+        _end(child)
     return [results[k] for k in range(len(jobs))]
 
 
-def _taking(jobs: Sequence[Callable[[], T]], ticket, done: dict[int, T]
+class _Tickets:
+    """The jobs apart handed out in their order between a parent and its forked child:
+    their indices as 4-byte tokens in a pipe both read, each read taking the next (a
+    pipe's reads and writes of up to PIPE_BUF bytes are atomic, so no token is split or
+    taken twice, by either process or by any of their threads), and the end once it is
+    empty: the writing end is closed before the fork."""
+
+    def __init__(self, count: int):
+        tokens = b"".join(k.to_bytes(4, sys.byteorder) for k in range(count))
+        if len(tokens) > 16384:             # well within a pipe's buffer, written at once
+            raise ValueError(f"{count} jobs apart")
+        self._fd, write = os.pipe()
+        try:
+            os.write(write, tokens)
+        finally:
+            os.close(write)
+
+    def next(self) -> int | None:
+        """The index of the next job not taken yet, or None."""
+        token = os.read(self._fd, 4)
+        return int.from_bytes(token, sys.byteorder) if len(token) == 4 else None
+
+    def close(self) -> None:
+        os.close(self._fd)
+
+
+def _read_all(fd: int) -> bytes:
+    """What the child wrote to the pipe ``fd`` until it closed its end (b"" if nothing)."""
+    chunks = []
+    while chunk := os.read(fd, 1 << 16):
+        chunks.append(chunk)
+    return b"".join(chunks)
+
+
+def _end(child: int) -> None:
+    """Reap the forked ``child``, ending it first (SIGTERM) if it still runs."""
+    import signal
+
+    try:
+        if os.waitpid(child, os.WNOHANG)[0] == 0:
+            os.kill(child, signal.SIGTERM)
+            os.waitpid(child, 0)
+    except (ChildProcessError, ProcessLookupError):         # reaped already
+        pass
+
+
+def _taking(jobs: Sequence[Callable[[], T]], tickets: _Tickets, done: dict[int, T]
             ) -> Callable[[], None]:
-    """A job that takes the next of ``jobs`` not yet taken by anyone sharing ``ticket``,
-    runs it into ``done`` and goes on until none is left."""
+    """A job that takes the next of ``jobs`` not yet taken by anyone sharing
+    ``tickets``, runs it into ``done`` and goes on until none is left."""
     def take() -> None:
-        while True:
-            with ticket.get_lock():
-                k = ticket.value
-                ticket.value = k + 1
-            if k >= len(jobs):
-                return
+        while (k := tickets.next()) is not None:
             done[k] = jobs[k]()
     return take
 
 
-def _child(jobs: Sequence[Callable[[], T]], ticket, threads: int, sender, parent: int
-           ) -> None:
+def _child(jobs: Sequence[Callable[[], T]], tickets: _Tickets, threads: int, sender: int,
+           parent: int) -> None:
     """The body of :func:`_run_apart`'s child: run the jobs it takes and answer ("ok",
-    {index: result}) or ("error", exception) (:func:`_answer`)."""
+    {index: result}) or ("error", exception) (:func:`_answer`) through the pipe
+    ``sender``."""
     done: dict[int, T] = {}
 
     def take_all() -> dict[int, T]:
-        run_all([_taking(jobs, ticket, done)] * threads, threads)
+        run_all([_taking(jobs, tickets, done)] * threads, threads)
         return done
 
-    _answer(take_all, sender, parent)
+    _answer(take_all, _PipeEnd(sender), parent)
+
+
+class _PipeEnd:
+    """The writing end ``fd`` of a pipe as :func:`_answer` uses a connection: the answer
+    pickled, then the end closed (the reader reads to the end of the pipe)."""
+
+    def __init__(self, fd: int):
+        self._fd = fd
+
+    def send(self, answer) -> None:
+        data = memoryview(pickle.dumps(answer, protocol=pickle.HIGHEST_PROTOCOL))
+        while data:
+            data = data[os.write(self._fd, data):]
+
+    def close(self) -> None:
+        os.close(self._fd)
+        for stream in (sys.stdout, sys.stderr):     # what the jobs wrote, before _exit
+            try:
+                stream.flush()
+            except (AttributeError, OSError, ValueError):
+                pass
 
 
 def _answer(compute: Callable[[], T], sender, parent: int) -> None:

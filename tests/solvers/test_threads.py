@@ -241,12 +241,12 @@ def test_no_child_in_a_daemonic_worker_process(forkable):
 
 
 def test_threads_do_the_work_where_no_child_can_be_started(forkable, monkeypatch):
-    import multiprocessing.context
+    from mocapfill.solvers import _threads
 
-    def refused(self):
+    def refused():
         raise OSError(11, "Resource temporarily unavailable")       # fork's EAGAIN
 
-    monkeypatch.setattr(multiprocessing.context.ForkProcess, "start", refused)
+    monkeypatch.setattr(_threads.os, "fork", refused)
     names = run_all([lambda: threading.current_thread().name] * 2, threads=2, apart=[1])
     assert set(names) <= {"mocapfill-0", "mocapfill-1"}
 
