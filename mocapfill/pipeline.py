@@ -357,32 +357,15 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
     return solved if borrowed is None else (solved, validation)
 
 
-def window_size(n_frames: int, window: int, overlap: int) -> int:
-    """The frames of every window of a clip of ``n_frames``: the fewest windows of at most
-    ``window`` frames, overlapping by ``overlap``, that cover it, made one size.
-
-    Windows of ``window`` frames each, the last one ending at the clip's end, made a clip
-    just past a multiple of the step cost a window more than its length: 12,001 frames
-    were two windows of 12,000 (24 s against 13 s for 12,000 frames), 22,001 three.
-    """
-    if n_frames <= window:
-        return n_frames
-    count = -(-(n_frames - overlap) // (window - overlap))
-    return -(-(n_frames + (count - 1) * overlap) // count)
-
-
 def window_bounds(n_frames: int, window: int, overlap: int,
                   observed: np.ndarray | None = None) -> list[tuple[int, int]]:
-    """[start, stop) of overlapping windows covering ``n_frames``, all of
-    :func:`window_size` frames (at most ``window``).
+    """[start, stop) of overlapping windows covering ``n_frames``; the last one is full.
 
-    Windows start ``size − overlap`` frames apart; the last one ends at the clip's end.
-    With ``observed`` (rows × frames), a window starts earlier where a gap runs out of the
-    window before it, so that one window holds that gap whole with GAP_CONTEXT frames
-    before it where it can (:func:`_start_holding`): a gap no window holds whole is
-    extrapolated from each side.
+    Windows start ``window − overlap`` frames apart. With ``observed`` (rows × frames), a
+    window starts earlier where a gap runs out of the window before it, so that one window
+    holds that gap whole with GAP_CONTEXT frames before it where it can
+    (:func:`_start_holding`): a gap no window holds whole is extrapolated from each side.
     """
-    window = window_size(n_frames, window, overlap)
     if n_frames <= window:
         return [(0, n_frames)]
     step = window - overlap
@@ -596,8 +579,7 @@ def _complete_clip(motion: Motion, matrix: np.ndarray, observed: np.ndarray,
     ``rows`` says what the matrix's rows are, for the message refusing a --rank above them.
     """
     rank = options.solver_options.get("rank")
-    limit = min(matrix.shape[0],                                    # rows, frames per solve
-                window_size(matrix.shape[1], WINDOW_FRAMES, WINDOW_OVERLAP))
+    limit = min(matrix.shape[0], matrix.shape[1], WINDOW_FRAMES)   # rows, frames per solve
     if rank is not None and rank > limit:
         raise ParameterError(f"{named(motion.path)}--rank {rank} is larger than this clip allows "
                              f"({limit}: the smaller of {rows} and frames)")

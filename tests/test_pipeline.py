@@ -415,31 +415,13 @@ def test_window_bounds_cover_the_clip_with_overlap():
     from mocapfill.pipeline import window_bounds
 
     bounds = window_bounds(25_000, 10_000, 1_000)
-    assert bounds == [(0, 9_000), (8_000, 17_000), (16_000, 25_000)]
+    assert bounds[0] == (0, 10_000) and bounds[-1] == (15_000, 25_000)
     assert all(b[0] < a[1] - 999 for a, b in zip(bounds, bounds[1:]))
 
 
-def test_windows_are_the_fewest_that_cover_the_clip_all_of_one_size():
-    # Windows of the full size, the last one ending at the clip's end, made a clip just
-    # past a multiple of the step cost a window more than its length (12,001 frames: two
-    # windows of 12,000).
-    from mocapfill.pipeline import window_bounds
-
-    assert window_bounds(12_000, 12_000, 2_000) == [(0, 12_000)]
-    assert window_bounds(12_001, 12_000, 2_000) == [(0, 7_001), (5_000, 12_001)]
-    for n in (12_001, 14_400, 22_001, 25_000, 36_000, 216_000):
-        bounds = window_bounds(n, 12_000, 2_000)
-        sizes = {stop - start for start, stop in bounds}
-        assert len(sizes) == 1 and sizes.pop() <= 12_000
-        assert bounds[0][0] == 0 and bounds[-1][1] == n
-        assert all(a[0] < b[0] <= a[1] - 2_000 for a, b in zip(bounds, bounds[1:]))
-        # Fewer windows would not cover the clip with that overlap.
-        assert (len(bounds) - 1) * 10_000 + 2_000 < n <= len(bounds) * 10_000 + 2_000
-
-
 def test_a_window_starts_early_to_hold_a_gap_that_runs_out_of_the_window_before():
-    # Marker 0 is missing over 700–1100: out of the first window [0, 900), and into the
-    # second from its usual start (700). The second window starts early enough to hold it
+    # Marker 0 is missing over 700–1100: out of the first window [0, 1000), and into the
+    # second at its usual start (800). The second window starts early enough to hold it
     # whole, and the windowed linear fill is then the whole clip's (the first window's
     # extrapolation weighs EDGE_GAP_WEIGHT); from fixed starts it was extrapolated from
     # each side and cross-faded.
@@ -448,11 +430,11 @@ def test_a_window_starts_early_to_hold_a_gap_that_runs_out_of_the_window_before(
     truth = smooth_clip(3000, 6)
     matrix, observed = with_gap(with_gap(truth, 0, 700, 1100), 2, 1750, 1900).matrix()
     fixed = pipeline.window_bounds(3000, 1000, 200)
-    assert fixed == [(0, 900), (700, 1600), (1400, 2300), (2100, 3000)]
+    assert fixed == [(0, 1000), (800, 1800), (1600, 2600), (2000, 3000)]
     bounds = pipeline.window_bounds(3000, 1000, 200, observed)
-    assert bounds[0] == (0, 900) and bounds[-1] == (2100, 3000)
+    assert bounds[0] == (0, 1000) and bounds[-1] == (2000, 3000)
     assert any(a < 700 and b > 1100 for a, b in bounds)
-    assert all(b[0] - a[0] >= 450 for a, b in zip(bounds, bounds[1:-1]))
+    assert all(b[0] - a[0] >= 500 for a, b in zip(bounds, bounds[1:-1]))
     # A gap longer than a window, or reaching the clip's end, moves nothing.
     far, _ = with_gap(with_gap(truth, 0, 700, 1800), 1, 900, 3000).matrix()
     assert pipeline.window_bounds(3000, 1000, 200, ~np.isnan(far)) == fixed
@@ -464,7 +446,7 @@ def test_a_window_starts_early_to_hold_a_gap_that_runs_out_of_the_window_before(
 
 def test_windows_hold_whole_every_interior_gap_up_to_a_third_of_a_window():
     from mocapfill.gaps import missing_runs
-    from mocapfill.pipeline import window_bounds, window_size
+    from mocapfill.pipeline import window_bounds
 
     rng = np.random.default_rng(0)
     for _ in range(200):
@@ -475,13 +457,12 @@ def test_windows_hold_whole_every_interior_gap_up_to_a_third_of_a_window():
             start = int(rng.integers(0, n - length))
             observed[int(rng.integers(rows)), start:start + length] = False
         bounds = window_bounds(n, 1000, 200, observed)
-        size = window_size(n, 1000, 200)
         assert bounds[0][0] == 0 and bounds[-1][1] == n
-        assert all(stop - start == size for start, stop in bounds)
+        assert all(stop - start == 1000 for start, stop in bounds)
         assert all(a[0] < b[0] <= a[1] - 200 for a, b in zip(bounds, bounds[1:]))
         for row in observed:
             for start, stop in missing_runs(row):
-                if 0 < start and stop < n and stop - start <= size // 3:
+                if 0 < start and stop < n and stop - start <= 333:
                     assert any(a < start and stop < b for a, b in bounds), (start, stop)
 
 
@@ -506,19 +487,19 @@ def test_windowed_solve_is_close_to_the_whole_clip_solve():
 
 
 def test_windows_are_streamed_into_the_clip_as_if_accumulated_and_divided():
-    # 2650 frames in windows of at most 1000 with 200 of overlap: four of 813 frames, the
-    # last one starting at 1837, two frames before the third one's ramp down begins, so
-    # the weights at both ends of that overlap do not sum to 1. The weights are row by row
-    # (_window_trust): the gap of marker 1 runs into the second window's first frame.
+    # 2650 frames in windows of 1000 with 200 of overlap: the last window starts at 1650,
+    # so three windows cover frames 1650–1800 and the weights there do not sum to 1.
+    # The weights are row by row (_window_trust): the gap of marker 1 runs into the second
+    # window's first frame.
     from mocapfill.pipeline import _solve_scaled, _window_trust, complete_matrix, window_bounds
 
     truth = smooth_clip(2650, 6)
     gapped = truth
-    for marker, start in [(0, 100), (1, 603), (2, 1620), (3, 1800), (4, 2500)]:
+    for marker, start in [(0, 100), (1, 790), (2, 1620), (3, 1700), (4, 2500)]:
         gapped = with_gap(gapped, marker, start, start + 80)
     matrix, observed = gapped.matrix()
     bounds = window_bounds(2650, 1000, 200)
-    assert bounds == [(0, 813), (613, 1426), (1226, 2039), (1837, 2650)]
+    assert [a for a, _ in bounds] == [0, 800, 1600, 1650]
     total, weight = np.zeros(matrix.shape), np.zeros(matrix.shape)
     ramp = np.linspace(0.0, 1.0, 202)[1:-1]
     for start, stop in bounds:
@@ -543,27 +524,26 @@ def test_windows_are_streamed_into_the_clip_as_if_accumulated_and_divided():
 
 
 def test_a_window_gives_no_fill_to_a_marker_it_never_sees_and_little_past_its_edges():
-    # Windows [0, 900), [700, 1600), [1400, 2300), [2100, 3000). Marker 0 is missing over
-    # 700–1750: the second window never sees it, and the first and third see the gap run
+    # Windows [0, 1000), [800, 1800), [1600, 2600), [2000, 3000). Marker 0 is missing over
+    # 800–2200: the second window never sees it, and the first and third see the gap run
     # into their edges. Before, the second window filled it with the scale's centre (the
     # origin: 0, 0, 0 mm) and the cross-fades carried that into the neighbours' frames.
-    from mocapfill.pipeline import EDGE_GAP_WEIGHT, _window_trust, complete_matrix, window_bounds
+    from mocapfill.pipeline import EDGE_GAP_WEIGHT, _window_trust, complete_matrix
 
     truth = smooth_clip(3000, 6)
-    matrix, observed = with_gap(with_gap(truth, 0, 700, 1750), 1, 1000, 1050).matrix()
-    assert window_bounds(3000, 1000, 200, observed)[1] == (700, 1600)
+    matrix, observed = with_gap(with_gap(truth, 0, 800, 2200), 1, 1700, 1750).matrix()
     got = complete_matrix(matrix, observed, "spline", window_frames=1000,
                           window_overlap=200)
-    # Frames 900–1400 lie in the second window alone among those that see marker 0.
-    assert np.isnan(got[0:3, 900:1400]).all()
-    assert np.isfinite(got[0:3, 700:900]).all() and np.isfinite(got[0:3, 1400:1750]).all()
+    # Frames 1000–1600 lie in the second window alone among those that see marker 0.
+    assert np.isnan(got[0:3, 1000:1600]).all()
+    assert np.isfinite(got[0:3, 800:1000]).all() and np.isfinite(got[0:3, 1600:2200]).all()
     assert np.isfinite(got[3:]).all()
     np.testing.assert_array_equal(got[observed], matrix[observed])
-    trust = _window_trust(observed[:, 700:1600], False, False)
+    trust = _window_trust(observed[:, 800:1800], False, False)
     assert (trust[0:3] == 0).all()
-    assert (trust[3:6, 300:350] == 1).all()           # marker 1's gap lies inside
-    first = _window_trust(observed[:, 0:900], True, False)
-    assert (first[0:3, 700:] == EDGE_GAP_WEIGHT).all() and (first[0:3, :700] == 1).all()
+    assert (trust[3:6, 900:950] == 1).all()           # marker 1's gap lies inside
+    first = _window_trust(observed[:, 0:1000], True, False)
+    assert (first[0:3, 800:] == EDGE_GAP_WEIGHT).all() and (first[0:3, :800] == 1).all()
 
 
 def test_a_gap_no_window_can_fill_is_left_whole_and_reported(monkeypatch):
@@ -571,17 +551,15 @@ def test_a_gap_no_window_can_fill_is_left_whole_and_reported(monkeypatch):
 
     from mocapfill import pipeline
 
-    # Windows [0, 900), [700, 1600), [1400, 2300), [2100, 3000): marker 0, missing over
-    # 650–2450, is seen by no window that holds frames 900–2100.
     truth = smooth_clip(3000, 6)
-    gapped = with_gap(with_gap(truth, 0, 650, 2450), 1, 1700, 1750)
+    gapped = with_gap(with_gap(truth, 0, 800, 2200), 1, 1700, 1750)
     monkeypatch.setattr(pipeline, "complete_matrix", partial(
         pipeline.complete_matrix, window_frames=1000, window_overlap=200))
     result = repair(gapped, RepairOptions(method="spline"))
     status = {o.gap.marker: o.status for o in result.gaps}
     assert status == {0: pipeline.LEFT_NO_WINDOW, 1: pipeline.FILLED}
-    assert not result.motion.observed[650:2450, 0].any()
-    assert np.isnan(result.motion.positions[650:2450, 0]).all()
+    assert not result.motion.observed[800:2200, 0].any()
+    assert np.isnan(result.motion.positions[800:2200, 0]).all()
     assert result.motion.observed[1700:1750, 1].all()
 
 
