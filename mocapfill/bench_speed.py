@@ -198,6 +198,20 @@ def _solver_stats(path: Path, method: str) -> tuple[int | None, float | None]:
     return iterations, 1000.0 * sum(c[1] for c in calls) / iterations
 
 
+def random_gaps(rng: np.random.Generator, frames: int, markers: int, missing: float
+                ) -> np.ndarray:
+    """(frames, markers) observed mask with ~``missing`` of the samples in 20–120-frame
+    gaps of random markers, none touching the clip's first or last frame."""
+    observed = np.ones((frames, markers), bool)
+    budget = int(missing * frames * markers)
+    while budget > 0:
+        length = int(rng.integers(20, 121))
+        start = int(rng.integers(1, frames - length - 1))
+        observed[start:start + length, int(rng.integers(markers))] = False
+        budget -= length
+    return observed
+
+
 def _synthetic(frames: int, markers: int, missing: float, seed: int) -> Motion:
     """A smooth, low-rank-ish clip with ~``missing`` of samples in 20-120-frame gaps."""
     rng = np.random.default_rng(seed)
@@ -208,13 +222,7 @@ def _synthetic(frames: int, markers: int, missing: float, seed: int) -> Motion:
     data += 400 * rng.standard_normal((3 * markers, 1))
     data += rng.standard_normal(data.shape) * 0.3
     positions = data.reshape(markers, 3, frames).transpose(2, 0, 1)
-    observed = np.ones((frames, markers), bool)
-    budget = int(missing * frames * markers)
-    while budget > 0:
-        length = int(rng.integers(20, 121))
-        start = int(rng.integers(1, frames - length - 1))
-        observed[start:start + length, int(rng.integers(markers))] = False
-        budget -= length
+    observed = random_gaps(rng, frames, markers, missing)
     labels = tuple(f"M{j:03d}" for j in range(markers))
     return Motion(positions, observed, labels, 120.0, "mm")
 

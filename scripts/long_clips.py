@@ -23,6 +23,7 @@ one_thread_by_default()
 import numpy as np  # noqa: E402 (after the BLAS setting)
 
 from mocapfill.bench import SHARED_DATA  # noqa: E402 (after the BLAS setting)
+from mocapfill.bench_speed import random_gaps  # noqa: E402 (after the BLAS setting)
 from mocapfill.formats import read  # noqa: E402 (after the BLAS setting)
 from mocapfill.motion import Motion  # noqa: E402 (after the BLAS setting)
 from mocapfill.pipeline import RepairOptions, repair  # noqa: E402 (after the BLAS setting)
@@ -64,15 +65,7 @@ def long_clip(frames: int, seed: int) -> tuple[np.ndarray, Motion]:
             joined.append(piece)
             total += len(piece)
     truth = np.concatenate(joined)[:frames]
-    rng = np.random.default_rng(seed)
-    markers = truth.shape[1]
-    observed = np.ones((frames, markers), bool)
-    budget = int(MISSING * frames * markers)
-    while budget > 0:
-        length = int(rng.integers(20, 121))
-        start = int(rng.integers(1, frames - length - 1))
-        observed[start:start + length, int(rng.integers(markers))] = False
-        budget -= length
+    observed = random_gaps(np.random.default_rng(seed), frames, truth.shape[1], MISSING)
     positions = np.where(observed[:, :, None], truth, np.nan)
     return truth, Motion(positions, observed, labels, rate, "mm")
 
