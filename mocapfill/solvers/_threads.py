@@ -206,7 +206,9 @@ class _Tickets:
 
     def __init__(self, count: int):
         tokens = b"".join(k.to_bytes(4, sys.byteorder) for k in range(count))
-        if len(tokens) > 16384:             # well within a pipe's buffer, written at once
+        # Written at once before any reader exists: at most PIPE_BUF (4,096 bytes on
+        # Linux), what every pipe holds even where the system shrinks their buffers.
+        if len(tokens) > 4096:
             raise ValueError(f"{count} jobs apart")
         self._fd, write = os.pipe()
         try:
