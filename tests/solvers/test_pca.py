@@ -267,3 +267,13 @@ def test_models_from_the_complete_frames_sums_equal_models_from_their_own_frames
     # Where the complete frames are not most of the training frames, the model is made
     # from its own frames.
     assert moments.centred(X, train[~complete[train]], np.arange(6)) is None
+    # A constant coordinate (a marker fixed in the lab along one axis) keeps no spread
+    # at all about the complete frames' mean, as about a model's own first frame: the
+    # normalisation leaves it alone.
+    X[:, 4] = 0.1 + 0.2                         # a value whose sums round
+    moments = pca._Moments(X, complete)
+    summed = pca._model(X, 14, predictors, train, weights, 0.99, "published", moments)
+    direct = pca._model(X, 14, predictors, train, weights, 0.99, "published")
+    assert summed[2][4] == direct[2][4] == 1.0      # std: none, so 1
+    for a, b in zip(direct, summed):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
