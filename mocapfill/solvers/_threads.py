@@ -155,11 +155,7 @@ def _run_apart(jobs: Sequence[Callable[[], T]], apart: Sequence[int], threads: i
     except OSError:
         tickets.close()
         return _run_threaded(jobs, threads)
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (AttributeError, OSError, ValueError):       # None, closed, broken pipe
-            pass
+    _flush_std_streams()
     parent = os.getpid()
     try:
         child = os.fork()
@@ -283,11 +279,18 @@ class _PipeEnd:
 
     def close(self) -> None:
         os.close(self._fd)
-        for stream in (sys.stdout, sys.stderr):     # what the jobs wrote, before _exit
-            try:
-                stream.flush()
-            except (AttributeError, OSError, ValueError):
-                pass
+        _flush_std_streams()                        # what the jobs wrote, before _exit
+
+
+def _flush_std_streams() -> None:
+    """Flush standard output and error, as far as they can be (None, closed, a broken
+    pipe): before a fork, so the child does not write the parent's buffered text again,
+    and in the child before it leaves by ``os._exit``."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (AttributeError, OSError, ValueError):
+            pass
 
 
 def _answer(compute: Callable[[], T], sender, parent: int) -> None:
