@@ -466,10 +466,11 @@ def remove_temp_files(jobs: Iterable[FileJob]) -> None:
 
 
 def _read(path: Path, zero_is_missing: str):
-    """``formats.read``, with ``zero_is_missing`` for a C3D file (the others take none)."""
+    """``formats.read``, with ``zero_is_missing`` for the formats that take it."""
     from . import formats
 
-    extra = {"zero_is_missing": zero_is_missing} if path.suffix.lower() == ".c3d" else {}
+    extra = ({"zero_is_missing": zero_is_missing}
+             if path.suffix.lower() in formats.ZERO_FORMATS else {})
     return formats.read(path, **extra)
 
 
@@ -826,7 +827,8 @@ def repair_many(paths: Iterable[str | os.PathLike] | str | os.PathLike,
     force
         Redo files whose output is newer than their input (skipped otherwise).
     zero_is_missing
-        C3D only: "auto", "on" or "off" (see ``mocapfill.formats.c3d``).
+        C3D, TRC and CSV: "auto", "on" or "off" (see ``mocapfill.formats.c3d`` and
+        ``mocapfill.formats._text.zeros_wanted``).
     max_gap_s
         Leave gaps longer than this many seconds, converted with each file's own rate
         (overrides ``options.max_gap_frames``).

@@ -142,18 +142,19 @@ class _OutputFolder(click.Path):
 _zero_option = click.option(
     "--zero-is-missing", type=click.Choice(["auto", "on", "off"]), default="auto",
     show_default=True,
-    help="C3D only: treat samples at exactly x = y = z = 0 as missing. auto = on for "
-         "Qualisys files, which store gaps that way.")
+    help="C3D, TRC and CSV: treat samples at exactly x = y = z = 0 as missing. auto = on "
+         "for Qualisys C3D files, which store gaps that way, off for other files.")
 
 
 def _read(path: Path, zero_is_missing: str = "auto"):
     from . import formats
 
-    if path.suffix.lower() == ".c3d":
+    if path.suffix.lower() in formats.ZERO_FORMATS:
         return formats.read(path, zero_is_missing=zero_is_missing)
     if zero_is_missing == "on":     # asked for explicitly: say it cannot apply here
-        click.echo(f"mocapfill: note: {path}: --zero-is-missing on applies to C3D files "
-                   "only; samples at exactly (0, 0, 0) in this file are read as data", err=True)
+        click.echo(f"mocapfill: note: {path}: --zero-is-missing on applies to C3D, TRC and "
+                   "CSV files only; samples at exactly (0, 0, 0) in this file are read as "
+                   "data", err=True)
     return formats.read(path)
 
 

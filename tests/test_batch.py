@@ -916,3 +916,20 @@ def test_max_gap_in_seconds_leaves_a_gap_just_longer_than_that_in_a_batch(tmp_pa
     assert (record.gaps_filled, record.gaps_left) == (1, 1)
     observed = formats.read(tmp_path / "out" / "a.npz").observed
     assert not observed[50:68, 1].any() and observed[100:117, 2].all()
+
+
+def test_repair_many_reads_zero_gaps_of_text_files_when_asked(tmp_path):
+    # --zero-is-missing reached C3D files only; a folder of QTM-derived CSV/TRC files with
+    # gaps at (0, 0, 0) came out "unchanged" whatever it was given.
+    root = tmp_path / "data"
+    root.mkdir()
+    (root / "z.csv").write_text("Frame,Time,A_X,A_Y,A_Z\n1,0,1,2,3\n2,0.01,0,0,0\n"
+                                "3,0.02,3,4,5\n")
+    outcomes = {}
+    for setting in ("auto", "on"):
+        report = mocapfill.repair_many([root], tmp_path / setting, jobs=1,
+                                       options=RepairOptions(method="linear"),
+                                       zero_is_missing=setting)
+        outcomes[setting] = (report.repaired, report.unchanged)
+    assert outcomes == {"auto": (0, 1), "on": (1, 0)}
+    assert (tmp_path / "on" / "z.csv").read_text().splitlines()[2] == "2,0.01,2,3,4"

@@ -1047,17 +1047,31 @@ def test_max_gap_in_seconds_leaves_exactly_the_gaps_longer_than_that(tmp_path, r
 
 
 @pytest.mark.parametrize("zeros", [None, "auto", "off", "on"])
-def test_zero_is_missing_on_for_a_file_that_is_not_c3d_is_noted(tmp_path, zeros):
-    # QTM-derived text files hold gaps as 0, 0, 0 (formats-and-conventions.md 1.1, 4.2), but
-    # --zero-is-missing reads C3D files only: asked for on a CSV it was ignored without a
-    # word, the zeros kept as data, and the repair said "0 gaps filled" with exit 0.
+def test_zero_is_missing_on_fills_the_zero_samples_of_a_csv(tmp_path, zeros):
+    # QTM-derived text files hold gaps as 0, 0, 0 (formats-and-conventions.md 1.1, 4.2).
+    # --zero-is-missing once read C3D files only: asked for on a CSV it was ignored, the
+    # zeros kept as data and the repair said "0 gaps filled" with exit 0. Now "on" reads
+    # them as gaps (only then: a CSV carries no sign of the exporter) and fills them.
     src = tmp_path / "z.csv"
-    text = "Frame,Time,A_X,A_Y,A_Z\n1,0,1,2,3\n2,0.01,0,0,0\n3,0.02,1,2,3\n"
+    text = "Frame,Time,A_X,A_Y,A_Z\n1,0,1,2,3\n2,0.01,0,0,0\n3,0.02,3,4,5\n"
     src.write_text(text)
     option = [] if zeros is None else ["--zero-is-missing", zeros]
     result = run("repair", src, tmp_path / "out.csv", "--method", "linear", *option)
     assert result.exit_code == 0, result.output
-    note = (f"mocapfill: note: {src}: --zero-is-missing on applies to C3D files only; "
-            "samples at exactly (0, 0, 0) in this file are read as data")
-    assert (note in result.stderr) == (zeros == "on")
-    assert (tmp_path / "out.csv").read_text() == text
+    assert "applies to" not in result.stderr
+    filled = text.replace("2,0.01,0,0,0", "2,0.01,2,3,4")
+    assert (tmp_path / "out.csv").read_text() == (filled if zeros == "on" else text)
+    assert ("1 gaps filled" if zeros == "on" else "0 gaps filled") in result.stderr
+
+
+def test_zero_is_missing_on_for_a_format_that_cannot_hold_it_is_noted(tmp_path):
+    # A BVH stores joint angles, where 0 is an ordinary value: the option cannot apply.
+    src = tmp_path / "j.bvh"
+    src.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Xposition "
+                   "Yposition Zposition\n  End Site\n  {\n    OFFSET 0 1 0\n  }\n}\n"
+                   "MOTION\nFrames: 2\nFrame Time: 0.01\n0 0 0\n1 1 1\n")
+    result = run("info", src, "--zero-is-missing", "on")
+    assert result.exit_code == 0, result.output
+    assert (f"mocapfill: note: {src}: --zero-is-missing on applies to C3D, TRC and CSV "
+            "files only; samples at exactly (0, 0, 0) in this file are read as data"
+            in result.stderr)

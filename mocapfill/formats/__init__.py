@@ -49,6 +49,9 @@ FORMATS: dict[str, str] = {
     ".amc": "mocapfill.formats.acclaim",
 }
 
+# Formats whose readers take ``zero_is_missing`` (samples at exactly (0, 0, 0) as gaps).
+ZERO_FORMATS = (".c3d", ".trc", ".csv", ".txt")
+
 # Formats that store marker positions (valid targets of `convert`).
 POSITION_FORMATS = (".c3d", ".trc", ".csv", ".txt", ".npz")
 

@@ -15,12 +15,12 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError
+from ..errors import FormatError, ParameterError
 from ..motion import Motion
 
 ENCODING = "utf-8"
@@ -67,6 +67,9 @@ class TextSource:
         short (see :func:`find_cut_row`): its last cell is not read. -1 when there is none.
     width
         Cells a complete data row holds (:class:`RowWidth`); 0 when unknown.
+    zeros_are_gaps
+        Whether samples at exactly x = y = z = 0 were read as missing
+        (:func:`with_zero_gaps`): a repair rewrites all three of their cells.
     notes
         Readable remarks on what the reader tolerated (header counts that disagree with
         the data, ignored columns, a truncated file), for a report to show.
@@ -85,6 +88,7 @@ class TextSource:
     notes: tuple[str, ...] = ()
     cut_row: int = -1
     width: int = 0
+    zeros_are_gaps: bool = False
 
     @property
     def truncated(self) -> bool:
@@ -95,6 +99,37 @@ class TextSource:
         """Whether ``motion`` still has the shape and labels of the file (can be patched)."""
         return (motion.positions.shape[:2] == self.observed.shape
                 and tuple(motion.labels) == self.labels)
+
+
+def zeros_wanted(zero_is_missing: str) -> bool:
+    """Whether a text file's samples at exactly (0, 0, 0) are read as gaps: only with
+    ``zero_is_missing="on"``. ``"auto"`` reads them as data: unlike a QTM C3D file, a
+    text file carries no sign of the exporter that wrote its gaps so (formats-and-
+    conventions.md: QTM-derived TSV pipelines, the MoCap Toolbox)."""
+    if zero_is_missing not in ("auto", "on", "off"):
+        raise ParameterError(f"zero_is_missing must be 'auto', 'on' or 'off', "
+                             f"not {zero_is_missing!r}")
+    return zero_is_missing == "on"
+
+
+def with_zero_gaps(motion: Motion) -> Motion:
+    """``motion``, read from a text file, with its samples at exactly x = y = z = 0 as gaps
+    (all three coordinates, never one: a marker may sit on an axis plane). The source
+    handle's mask takes them too, so a repair rewrites their cells (:func:`patched_lines`),
+    and its notes say how many there were."""
+    zero = (motion.positions == 0).all(axis=2)       # NaN is not 0: gaps stay gaps
+    if not zero.any():
+        return motion
+    positions = motion.positions.copy()
+    positions[zero] = np.nan
+    observed = motion.observed & ~zero
+    source = motion.source
+    count = int(zero.sum())
+    note = (f"{count} sample{'s' if count > 1 else ''} at exactly (0, 0, 0) read as missing "
+            "(--zero-is-missing on)")
+    source = replace(source, observed=observed.copy(), zeros_are_gaps=True,
+                     notes=tuple(source.notes) + (note,))
+    return replace(motion, positions=positions, observed=observed, source=source)
 
 
 # ----------------------------------------------------------------------------- text I/O
@@ -637,8 +672,11 @@ def patched_lines(source: TextSource, motion: Motion,
     own precision, their missing cells only: a coordinate the file holds for a partly
     observed sample (a blank Y beside a number in X) is never rewritten. Samples the
     file holds but the Motion marks missing (gaps added by ``simulate``) are blanked with
-    the file's own missing token (the first one found in its rows, else an empty cell).
-    The values of samples observed in both are never rewritten.
+    the file's own missing token (the first one found in its rows, else an empty cell;
+    in a file whose gaps were read from zeros and that has no such token, ``0`` in the
+    column's precision). A filled sample read as a gap from zeros
+    (:attr:`TextSource.zeros_are_gaps`) has all three cells rewritten. The values of
+    samples observed in both are never rewritten.
 
     Parameters
     ----------
@@ -655,6 +693,7 @@ def patched_lines(source: TextSource, motion: Motion,
     if frames.size == 0:
         return list(source.lines)
     token = missing_token(source) if erased.any() else ""
+    zero_token = source.zeros_are_gaps and not token
     needed = {int(c) for c in np.unique(source.columns[markers].reshape(-1))}
     styles = (column_styles(source, needed) if decimals is None
               else dict.fromkeys(needed, NumberStyle(int(decimals))))
@@ -671,11 +710,15 @@ def patched_lines(source: TextSource, motion: Motion,
         for m in marker_list:
             if erased[f, m]:
                 for axis in range(3):
-                    _set_cell(cells, int(source.columns[m, axis]), token)
+                    c = int(source.columns[m, axis])
+                    _set_cell(cells, c, styles[c].format(0.0) if zero_token else token)
                 continue
+            zeros = source.zeros_are_gaps and all(
+                _cell_value(cells, int(c)) == 0 for c in source.columns[m])
             for axis in range(3):
                 c = int(source.columns[m, axis])
-                if not (index == cut_row and c == cut_cell) and _holds_value(cells, c):
+                if (not (index == cut_row and c == cut_cell) and not zeros
+                        and _holds_value(cells, c)):
                     continue    # an observed cell of a partly observed sample: kept
                 _set_cell(cells, c, styles[c].format(motion.positions[f, m, axis]))
             if source.w_columns is not None and source.w_columns[m] >= 0:
@@ -713,14 +756,19 @@ def missing_token(source: TextSource) -> str:
     return ""
 
 
+def _cell_value(cells: list[str], index: int) -> float:
+    """A row's cell as a number; NaN where it is missing, absent or not a number."""
+    if index >= len(cells):
+        return math.nan
+    try:
+        return parse_number(cell_text(cells[index]))
+    except ValueError:
+        return math.nan
+
+
 def _holds_value(cells: list[str], index: int) -> bool:
     """Whether a row's cell holds a finite number (an observed coordinate)."""
-    if index >= len(cells):
-        return False
-    try:
-        return math.isfinite(parse_number(cell_text(cells[index])))
-    except ValueError:
-        return False
+    return math.isfinite(_cell_value(cells, index))
 
 
 def _set_cell(cells: list[str], index: int, text: str) -> None:

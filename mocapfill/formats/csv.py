@@ -27,7 +27,8 @@ Kinetics Toolkit export (``ktk.TimeSeries`` written with pandas)
     sample is filled and its fourth cell is missing it is written as ``1``.
 
 Missing data: a sample is missing when any of its three cells is empty, ``NaN`` (any
-case), ``NA`` or ``N/A``.
+case), ``NA`` or ``N/A``; with ``zero_is_missing="on"`` also when all three are exactly 0
+(as QTM-derived exports and the MoCap Toolbox store gaps; ``_text.with_zero_gaps``).
 
 Rows: every data row holds as many cells as the header row (the axis row in a Vicon
 export, the first row in a headerless file); a row with fewer cells, or with values
@@ -100,8 +101,10 @@ from ._text import (
     sniff_delimiter,
     split_cells,
     split_ending,
+    with_zero_gaps,
     writable_rate,
     write_lines,
+    zeros_wanted,
 )
 
 DEFAULT_RATE = 120.0
@@ -119,7 +122,7 @@ _COMMENT_ITEM = re.compile(r"(\w+)\s*[:=]\s*([^,;]+)")
 
 
 def read(path: Path, *, rate: float | None = None, units: str | None = None,
-         **_ignored: object) -> Motion:
+         zero_is_missing: str = "auto", **_ignored: object) -> Motion:
     """Read a marker CSV file of any supported layout.
 
     Parameters
@@ -131,6 +134,9 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
     units
         Length unit, used only when the file states none (default ``"mm"``; ``"m"`` for
         Kinetics Toolkit files).
+    zero_is_missing
+        ``"on"``: samples at exactly x = y = z = 0 are missing too; ``"auto"`` (no text
+        file says it stores gaps so) and ``"off"`` read them as data.
     **_ignored
         Options meant for other formats.
 
@@ -144,8 +150,15 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
     FormatError
         Empty file, no data rows, no marker columns, a marker without all three axes, or
         a cell that is not a number (the message names the row and column).
+    ParameterError
+        ``zero_is_missing`` is not one of the three values.
     """
-    path = Path(path)
+    zeros = zeros_wanted(zero_is_missing)
+    motion = _read_layout(Path(path), rate, units)
+    return with_zero_gaps(motion) if zeros else motion
+
+
+def _read_layout(path: Path, rate: float | None, units: str | None) -> Motion:
     lines = read_lines(path)
     content = [i for i, line in enumerate(lines) if not is_blank(line)]
     if not content:

@@ -23,7 +23,8 @@ Reading is tolerant, because real files disagree with their own headers:
   gives the rows it holds. Each disagreement is described in the source handle's
   ``notes``; ``declared_frames`` and ``truncated_rows_read`` let a caller report "93 of
   652 declared frames read";
-- a sample is missing when any of its cells is empty or ``NaN`` (any case).
+- a sample is missing when any of its cells is empty or ``NaN`` (any case); with
+  ``zero_is_missing="on"`` also when all three are exactly 0 (``_text.with_zero_gaps``).
 
 Strict where leniency would misread the file:
 
@@ -96,8 +97,10 @@ from ._text import (
     read_lines,
     split_cells,
     split_ending,
+    with_zero_gaps,
     writable_rate,
     write_lines,
+    zeros_wanted,
 )
 
 DEFAULT_RATE = 120.0
@@ -112,7 +115,7 @@ _HEADER_BREAKS = re.compile("[\t\n\v\f\r\x1c-\x1e\x85\u2028\u2029]+")
 
 
 def read(path: Path, *, rate: float | None = None, units: str | None = None,
-         **_ignored: object) -> Motion:
+         zero_is_missing: str = "auto", **_ignored: object) -> Motion:
     """Read a TRC file.
 
     Parameters
@@ -123,6 +126,9 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
         Frame rate in Hz, used only when the file states none (default 120).
     units
         Length unit, used only when the header has no ``Units`` (default ``"mm"``).
+    zero_is_missing
+        ``"on"``: samples at exactly x = y = z = 0 are missing too (blank or ``NaN``
+        cells always are); ``"auto"`` and ``"off"`` read them as data.
     **_ignored
         Options meant for other formats.
 
@@ -137,8 +143,15 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
     FormatError
         Not a TRC file, a header line missing, no marker names, no data rows, or a cell
         that is not a number (the message names the row and column).
+    ParameterError
+        ``zero_is_missing`` is not one of the three values.
     """
-    path = Path(path)
+    zeros = zeros_wanted(zero_is_missing)
+    motion = _read(Path(path), rate, units)
+    return with_zero_gaps(motion) if zeros else motion
+
+
+def _read(path: Path, rate: float | None, units: str | None) -> Motion:
     lines = read_lines(path)
     if not lines or not _body(lines, 0).startswith("PathFileType"):
         raise FormatError(path, "not a TRC file (first line does not start with "
