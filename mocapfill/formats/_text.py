@@ -112,6 +112,15 @@ def zeros_wanted(zero_is_missing: str) -> bool:
     return zero_is_missing == "on"
 
 
+def read_zero_gaps(read: Callable[[Path, float | None, str | None], Motion], path: Path,
+                   rate: float | None, units: str | None, zero_is_missing: str) -> Motion:
+    """``read(path, rate, units)`` (a format's reader), its samples at exactly (0, 0, 0)
+    as gaps where ``zero_is_missing`` asks for it (:func:`zeros_wanted`, checked first)."""
+    zeros = zeros_wanted(zero_is_missing)
+    motion = read(Path(path), rate, units)
+    return with_zero_gaps(motion) if zeros else motion
+
+
 def with_zero_gaps(motion: Motion) -> Motion:
     """``motion``, read from a text file, with its samples at exactly x = y = z = 0 as gaps
     (all three coordinates, never one: a marker may sit on an axis plane). The source

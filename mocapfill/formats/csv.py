@@ -98,13 +98,12 @@ from ._text import (
     quote,
     rate_from_times,
     read_lines,
+    read_zero_gaps,
     sniff_delimiter,
     split_cells,
     split_ending,
-    with_zero_gaps,
     writable_rate,
     write_lines,
-    zeros_wanted,
 )
 
 DEFAULT_RATE = 120.0
@@ -153,9 +152,7 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
     ParameterError
         ``zero_is_missing`` is not one of the three values.
     """
-    zeros = zeros_wanted(zero_is_missing)
-    motion = _read_layout(Path(path), rate, units)
-    return with_zero_gaps(motion) if zeros else motion
+    return read_zero_gaps(_read_layout, path, rate, units, zero_is_missing)
 
 
 def _read_layout(path: Path, rate: float | None, units: str | None) -> Motion:
