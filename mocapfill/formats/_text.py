@@ -101,14 +101,20 @@ class TextSource:
                 and tuple(motion.labels) == self.labels)
 
 
+def check_zero_setting(zero_is_missing: str) -> None:
+    """Raise ParameterError unless ``zero_is_missing`` is ``"auto"``, ``"on"`` or ``"off"``
+    (the readers that take it: C3D, TRC, CSV)."""
+    if zero_is_missing not in ("auto", "on", "off"):
+        raise ParameterError(f"zero_is_missing must be 'auto', 'on' or 'off', "
+                             f"not {zero_is_missing!r}")
+
+
 def zeros_wanted(zero_is_missing: str) -> bool:
     """Whether a text file's samples at exactly (0, 0, 0) are read as gaps: only with
     ``zero_is_missing="on"``. ``"auto"`` reads them as data: unlike a QTM C3D file, a
     text file carries no sign of the exporter that wrote its gaps so (formats-and-
     conventions.md: QTM-derived TSV pipelines, the MoCap Toolbox)."""
-    if zero_is_missing not in ("auto", "on", "off"):
-        raise ParameterError(f"zero_is_missing must be 'auto', 'on' or 'off', "
-                             f"not {zero_is_missing!r}")
+    check_zero_setting(zero_is_missing)
     return zero_is_missing == "on"
 
 

@@ -58,9 +58,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError, ParameterError
+from ..errors import FormatError
 from ..motion import Motion, unique_labels
-from ._text import utf8_or_latin1
+from ._text import check_zero_setting, utf8_or_latin1
 
 PROCESSORS = {84: "intel", 85: "dec", 86: "mips"}
 # Parameters listing POINT entries that are model outputs, not marker trajectories.
@@ -421,9 +421,7 @@ def read(path: Path, *, zero_is_missing: str = "auto") -> Motion:
     ParameterError
         ``zero_is_missing`` is not one of the three values.
     """
-    if zero_is_missing not in ("auto", "on", "off"):
-        raise ParameterError(f"zero_is_missing must be 'auto', 'on' or 'off', "
-                             f"not {zero_is_missing!r}")
+    check_zero_setting(zero_is_missing)
     path = Path(path)
     data = path.read_bytes()
     layout = _layout(path, data)
