@@ -17,6 +17,19 @@ Vicon Nexus export
     axis row (``Frame, Sub Frame, X, Y, Z, ...``) and the units row; then its data rows up
     to a blank line. Only the ``Trajectories`` section is read; labels keep the
     ``Subject:`` prefix as Nexus writes it.
+OptiTrack Motive export
+    The first line holds the take's settings as name, value pairs (``Format Version``,
+    ``Export Frame Rate``, ``Length Units`` ...); then the rows ``Type``, ``Name``, ``ID``
+    (and ``Parent`` in newer versions), each with its label in the second cell, a row
+    naming each column's quantity (``Position``, ``Rotation`` ...), and the axis row
+    (``Frame, Time (Seconds)``, an optional ``TimeCode``, then ``X, Y, Z`` ...) above the
+    data. Only the ``Position`` X, Y, Z columns of type ``Marker`` are read (labelled and
+    unlabelled markers, named as Motive names them, ``Skeleton:LASI``, ``Unlabeled
+    1000``); rigid bodies, bones and their solved markers (``Rigid Body Marker``, ``Bone
+    Marker``: positions Motive computes from the solve, not measurements) and the
+    quality columns are not, and the source handle's notes count them. The rate is the
+    ``Export Frame Rate`` (else the ``Capture Frame Rate``), the unit the ``Length Units``
+    (``Millimeters`` → mm, ``Centimeters`` → cm, ``Meters`` → m).
 Headerless numeric CSV
     Every row is numeric, the first one too. With 3k columns they are k markers
     ``M001, M002, ...``; with 3k+1 the first column is a frame number (whole numbers) or
@@ -43,11 +56,13 @@ its last cell is not a number or is printed less precisely than the cells around
 short, the samples of its absent or unread cells are missing, and the source handle's
 notes say so.
 
-Rate, first in this order: the ``# rate:`` comment; the Vicon rate line; the ``Time``
+Rate, first in this order: the ``# rate:`` comment; the Vicon rate line or the Motive
+frame rate; the ``Time``
 column (median step, or the mean step when all steps agree within rounding); the
 ``rate=`` option; 120 Hz. A rate the file states (``120`` or ``120 Hz``) must be a
 positive, finite number (``inf``, ``0``, ``-120``, ``nan`` or ``abc`` is a FormatError).
-Units: the ``# units:`` comment; the Vicon units row; the ``units=`` option; ``"mm"``
+Units: the ``# units:`` comment; the Vicon units row or the Motive length units; the
+``units=`` option; ``"mm"``
 (``"m"`` for Kinetics Toolkit files, which are in SI units). Options only fill in what the
 file does not state.
 
@@ -108,9 +123,14 @@ from ._text import (
 
 DEFAULT_RATE = 120.0
 DEFAULT_UNITS = "mm"
-KINDS = ("csv", "vicon", "headerless", "ktk")
+KINDS = ("csv", "vicon", "headerless", "ktk", "motive")
 
 VICON_SECTIONS = ("trajectories", "devices", "joints", "model outputs", "segments")
+
+# OptiTrack Motive's first cell, and its length units as the unit names mocapfill knows.
+MOTIVE_FIRST_CELL = "format version"
+MOTIVE_UNITS = {"millimeters": "mm", "centimeters": "cm", "meters": "m", "inches": "in",
+                "feet": "ft"}
 
 _FRAME = re.compile(r"^(frame|frames|frame#|frame ?number|frame_number)$", re.IGNORECASE)
 _TIME = re.compile(r"^(time|time ?\((s|sec|secs|seconds)\)|time ?\[s\]|time_s)$",
@@ -173,6 +193,8 @@ def _read_layout(path: Path, rate: float | None, units: str | None) -> Motion:
     first = cell_text(split_cells(header, delimiter)[0]).lower()
     if first in VICON_SECTIONS:
         return _read_vicon(path, lines, delimiter, rate, units)
+    if first == MOTIVE_FIRST_CELL:
+        return _read_motive(path, lines, start, delimiter, rate, units)
     if _all_numeric(split_cells(header, delimiter)):
         return _read_headerless(path, lines, start, delimiter, comments, rate, units)
     return _read_plain(path, lines, start, delimiter, comments, rate, units)
@@ -350,6 +372,77 @@ def _read_vicon(path: Path, lines: list[str], delimiter: str, rate: float | None
                         labels, notes=notes, cut_row=cut, width=width.cells)
     return Motion(positions, observed, labels, file_rate or rate or DEFAULT_RATE,
                   unit_set.pop() if unit_set else (units or DEFAULT_UNITS),
+                  source=source, path=path, first_frame=first_frame)
+
+
+def _read_motive(path: Path, lines: list[str], start: int, delimiter: str,
+                 rate: float | None, units: str | None) -> Motion:
+    settings = [cell_text(c) for c in split_cells(_body(lines, start), delimiter)]
+    take = {settings[i].lower(): settings[i + 1] for i in range(0, len(settings) - 1, 2)}
+    rows: dict[str, list[str]] = {}            # Type, Name, ID, Parent, "" (the quantity)
+    axes_at = -1
+    for i in range(start + 1, len(lines)):
+        cells = [cell_text(c) for c in split_cells(_body(lines, i), delimiter)]
+        if len(cells) > 1 and _FRAME.match(cells[0]) and _TIME.match(cells[1]):
+            axes_at = i
+            break
+        if len(cells) > 1 and not cells[0]:
+            rows.setdefault(cells[1].lower(), cells)
+    if axes_at < 0:
+        raise FormatError(path, "OptiTrack Motive CSV without its axis row (Frame, "
+                                "Time (Seconds), X, Y, Z ...)")
+    if not {"type", "name", ""} <= rows.keys():
+        raise FormatError(path, "OptiTrack Motive CSV without its Type, Name and quantity "
+                                "(Position ...) rows above the axis row")
+    axes_row = [cell_text(c) for c in split_cells(_body(lines, axes_at), delimiter)]
+
+    def cell(row: list[str], c: int) -> str:
+        return row[c] if c < len(row) else ""
+
+    blocks: dict[str, dict[int, int]] = {}
+    ignored: dict[str, int] = {}
+    for c in range(2, len(axes_row)):
+        kind, name = cell(rows["type"], c), cell(rows["name"], c)
+        axis = axes_row[c].upper()
+        if (kind.lower() == "marker" and cell(rows[""], c).lower() == "position"
+                and name and axis in ("X", "Y", "Z")):
+            _add_axis(path, blocks, name, "XYZ".index(axis), c, f"{name} {axis}")
+        elif kind or name:
+            ignored[kind or "untyped"] = ignored.get(kind or "untyped", 0) + 1
+    complete = {name: axes for name, axes in blocks.items() if len(axes) == 3}
+    if not complete:
+        found = f" (it holds {', '.join(sorted(ignored))} columns)" if ignored else ""
+        raise FormatError(path, f"OptiTrack Motive CSV has no Marker position columns "
+                                f"(X, Y, Z){found}; export the markers too")
+    labels = tuple(complete)
+    columns = np.array([[complete[n][a] for a in range(3)] for n in labels], dtype=int)
+    row_lines = _data_rows(lines, axes_at + 1, delimiter)
+    if row_lines.size == 0:
+        raise FormatError(path, "OptiTrack Motive CSV has no data rows")
+
+    def column_name(marker: int, axis: int) -> str:
+        return f"{labels[marker]} {'XYZ'[axis]}"
+
+    width = RowWidth(_filled_width(axes_row), "the axis row has")
+    cut = find_cut_row(lines, row_lines, delimiter, width, columns)
+    positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
+                                        column_name, width, cut)
+    frames = parse_column(path, lines, row_lines, 0, delimiter, axes_row[0], cut)
+    times = parse_column(path, lines, row_lines, 1, delimiter, axes_row[1], cut)
+    stated = next(((key, take[key]) for key in ("export frame rate", "capture frame rate")
+                   if take.get(key)), None)
+    file_rate = (frame_rate(path, stated[1], stated[0].title()) if stated is not None
+                 else rate_from_times(times))
+    length_units = take.get("length units", "")
+    first_frame = first_frame_from(frames)
+    notes = ((("columns not read (not marker positions): " + ", ".join(
+        f"{count} {kind}" for kind, count in ignored.items()),) if ignored else ())
+        + _cut_note(cut) + frame_steps_notes(frames, row_lines, axes_row[0], first_frame))
+    source = TextSource("motive", tuple(lines), delimiter, row_lines, columns, observed,
+                        labels, notes=notes, cut_row=cut, width=width.cells)
+    return Motion(positions, observed, labels, file_rate or rate or DEFAULT_RATE,
+                  MOTIVE_UNITS.get(length_units.lower(), length_units.lower())
+                  or units or DEFAULT_UNITS,
                   source=source, path=path, first_frame=first_frame)
 
 

@@ -482,6 +482,81 @@ def test_vicon_export_with_a_byte_order_mark_reads_and_keeps_it(tmp_path):
     assert_patch_invariant(original, fill_by_interp(original), out)
 
 
+# ----------------------------------------------------------------------------- OptiTrack Motive
+
+# A Motive 1.25 export: a rigid body (rotation, position, error), its solved markers, a
+# labelled marker, an unlabelled one, a TimeCode column; blank cells for occlusions; a
+# quoted name holding the delimiter.
+MOTIVE = ("Format Version,1.25,Take Name,Take 01,Take Notes,,Capture Frame Rate,240.000000,"
+          "Export Frame Rate,120.000000,Capture Start Time,2024-01-01 01.00.00.000 PM,"
+          "Total Frames in Take,4,Total Exported Frames,4,Rotation Type,Quaternion,"
+          "Length Units,Meters,Coordinate Space,Global\n"
+          "\n"
+          ",Type,,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,"
+          "Rigid Body,Rigid Body,Rigid Body Marker,Rigid Body Marker,Rigid Body Marker,"
+          "Rigid Body Marker,Marker,Marker,Marker,Marker,Marker,Marker\n"
+          ",Name,,Wand,Wand,Wand,Wand,Wand,Wand,Wand,Wand,Wand:Marker1,Wand:Marker1,"
+          "Wand:Marker1,Wand:Marker1,\"Sub, A:LASI\",\"Sub, A:LASI\",\"Sub, A:LASI\","
+          "Unlabeled 1000,Unlabeled 1000,Unlabeled 1000\n"
+          ",ID,,1,1,1,1,1,1,1,1,1:1,1:1,1:1,1:1,2,2,2,3,3,3\n"
+          ",Parent,,,,,,,,,,Wand,Wand,Wand,Wand,,,,,,\n"
+          ",,,Rotation,Rotation,Rotation,Rotation,Position,Position,Position,"
+          "Mean Marker Error,Position,Position,Position,Marker Quality,Position,Position,"
+          "Position,Position,Position,Position\n"
+          "Frame,Time (Seconds),TimeCode,X,Y,Z,W,X,Y,Z,,X,Y,Z,,X,Y,Z,X,Y,Z\n"
+          "0,0.000000,00:00:00:00,0,0,0,1,0.1,0.2,0.3,0.0001,0.11,0.21,0.31,1,"
+          "0.512500,0.625000,0.750000,1.000000,2.000000,3.000000\n"
+          "1,0.008333,00:00:00:01,0,0,0,1,0.1,0.2,0.3,0.0001,0.11,0.21,0.31,1,"
+          ",,,1.100000,2.100000,3.100000\n"
+          "2,0.016667,00:00:00:02,0,0,0,1,0.1,0.2,0.3,0.0001,0.11,0.21,0.31,1,"
+          "0.537500,0.650000,0.775000,,,\n"
+          "3,0.025000,00:00:00:03,0,0,0,1,0.1,0.2,0.3,0.0001,0.11,0.21,0.31,1,"
+          "0.550000,0.662500,0.787500,1.300000,2.300000,3.300000\n")
+
+
+def test_motive_export_reads_its_markers_rate_units_and_first_frame(tmp_path):
+    # OptiTrack is one of the systems mocapfill's users record with: a Motive CSV export
+    # was refused ("no marker columns").
+    motion = csvfmt.read(write_text(tmp_path, MOTIVE))
+    assert motion.labels == ("Sub, A:LASI", "Unlabeled 1000")
+    assert (motion.rate, motion.units, motion.first_frame) == (120.0, "m", 0)
+    assert motion.observed.tolist() == [[True, True], [False, True], [True, False],
+                                        [True, True]]
+    np.testing.assert_array_equal(motion.positions[0, 0], [0.5125, 0.625, 0.75])
+    np.testing.assert_array_equal(motion.positions[3, 1], [1.3, 2.3, 3.3])
+    assert motion.source.notes[0] == ("columns not read (not marker positions): "
+                                      "8 Rigid Body, 4 Rigid Body Marker")
+
+
+def test_motive_patch_changes_only_filled_cells(tmp_path):
+    original = csvfmt.read(write_text(tmp_path, MOTIVE))
+    repaired = fill_by_interp(original)
+    out = tmp_path / "out.csv"
+    csvfmt.write(repaired, out)
+    assert_patch_invariant(original, repaired, out)
+    row = out.read_text().splitlines()[9]                  # frame 1
+    assert row.endswith(",0.525000,0.637500,0.762500,1.100000,2.100000,3.100000")
+
+
+def test_motive_export_of_rigid_bodies_only_is_a_format_error(tmp_path):
+    lines = MOTIVE.splitlines(keepends=True)
+    keep = 15                                       # frame, time, timecode, the rigid body
+    text = "".join(lines[:2] + [",".join(line.split(",")[:keep]) + "\n" for line in lines[2:]])
+    with pytest.raises(FormatError, match="no Marker position columns .*Rigid Body"):
+        csvfmt.read(write_text(tmp_path, text))
+
+
+def test_motive_export_without_its_axis_row_is_a_format_error(tmp_path):
+    text = "".join(line for line in MOTIVE.splitlines(keepends=True)
+                   if not line.startswith("Frame,"))
+    with pytest.raises(FormatError, match="without its axis row"):
+        csvfmt.read(write_text(tmp_path, text))
+
+
+def test_every_cut_of_a_motive_export_reads_as_a_prefix_of_its_samples_or_fails(tmp_path):
+    assert_every_cut_reads_as_a_prefix(write_text(tmp_path, MOTIVE))
+
+
 # ----------------------------------------------------------------------------- headerless
 
 def test_headerless_file_with_3k_columns_is_k_markers(tmp_path):
