@@ -20,7 +20,8 @@ Vicon Nexus export
 OptiTrack Motive export
     The first line holds the take's settings as name, value pairs (``Format Version``,
     ``Export Frame Rate``, ``Length Units`` ...); then the rows ``Type``, ``Name``, ``ID``
-    (and ``Parent`` in newer versions), each with its label in the second cell, a row
+    (and ``Parent`` in newer versions), each with its label in the second cell (taken in
+    that order where a file labels none), a row
     naming each column's quantity (``Position``, ``Rotation`` ...), and the axis row
     (``Frame, Time (Seconds)``, an optional ``TimeCode``, then ``X, Y, Z`` ...) above the
     data. Only the ``Position`` X, Y, Z columns of type ``Marker`` are read (labelled and
@@ -379,21 +380,27 @@ def _read_motive(path: Path, lines: list[str], start: int, delimiter: str,
                  rate: float | None, units: str | None) -> Motion:
     settings = [cell_text(c) for c in split_cells(_body(lines, start), delimiter)]
     take = {settings[i].lower(): settings[i + 1] for i in range(0, len(settings) - 1, 2)}
-    rows: dict[str, list[str]] = {}            # Type, Name, ID, Parent, "" (the quantity)
+    head: list[list[str]] = []       # the rows Type, Name, ID (Parent), then quantities
     axes_at = -1
     for i in range(start + 1, len(lines)):
         cells = [cell_text(c) for c in split_cells(_body(lines, i), delimiter)]
         if len(cells) > 1 and _FRAME.match(cells[0]) and _TIME.match(cells[1]):
             axes_at = i
             break
-        if len(cells) > 1 and not cells[0]:
-            rows.setdefault(cells[1].lower(), cells)
+        if any(cells):
+            head.append(cells)
     if axes_at < 0:
         raise FormatError(path, "OptiTrack Motive CSV without its axis row (Frame, "
                                 "Time (Seconds), X, Y, Z ...)")
-    if not {"type", "name", ""} <= rows.keys():
+    # Each row's label is its second cell (``,Type,Marker,...``); where a file gives none,
+    # the rows are taken in Motive's order. The quantities are the row above the axis row.
+    labelled = {cells[1].lower(): cells for cells in head if len(cells) > 1 and not cells[0]}
+    types = labelled.get("type", head[0] if len(head) >= 3 else None)
+    names = labelled.get("name", head[1] if len(head) >= 3 else None)
+    if types is None or names is None:
         raise FormatError(path, "OptiTrack Motive CSV without its Type, Name and quantity "
                                 "(Position ...) rows above the axis row")
+    quantities = head[-1]
     axes_row = [cell_text(c) for c in split_cells(_body(lines, axes_at), delimiter)]
 
     def cell(row: list[str], c: int) -> str:
@@ -402,9 +409,9 @@ def _read_motive(path: Path, lines: list[str], start: int, delimiter: str,
     blocks: dict[str, dict[int, int]] = {}
     ignored: dict[str, int] = {}
     for c in range(2, len(axes_row)):
-        kind, name = cell(rows["type"], c), cell(rows["name"], c)
+        kind, name = cell(types, c), cell(names, c)
         axis = axes_row[c].upper()
-        if (kind.lower() == "marker" and cell(rows[""], c).lower() == "position"
+        if (kind.lower() == "marker" and cell(quantities, c).lower() == "position"
                 and name and axis in ("X", "Y", "Z")):
             _add_axis(path, blocks, name, "XYZ".index(axis), c, f"{name} {axis}")
         elif kind or name:

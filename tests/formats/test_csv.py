@@ -528,6 +528,18 @@ def test_motive_export_reads_its_markers_rate_units_and_first_frame(tmp_path):
                                       "8 Rigid Body, 4 Rigid Body Marker")
 
 
+def test_motive_export_without_row_labels_reads_its_rows_in_motives_order(tmp_path):
+    # Rows written ",,Marker,..." instead of ",Type,Marker,..." (as some tools that write
+    # Motive's layout do): Type, Name and ID are taken in that order.
+    lines = MOTIVE.splitlines(keepends=True)
+    text = "".join(lines[:2] + [",," + line.split(",", 2)[2] for line in lines[2:5]]
+                   + lines[6:])                     # no Parent row either
+    motion = csvfmt.read(write_text(tmp_path, text))
+    reference = csvfmt.read(write_text(tmp_path, MOTIVE, "reference.csv"))
+    assert motion.labels == reference.labels
+    np.testing.assert_array_equal(motion.positions, reference.positions)
+
+
 def test_motive_patch_changes_only_filled_cells(tmp_path):
     original = csvfmt.read(write_text(tmp_path, MOTIVE))
     repaired = fill_by_interp(original)
