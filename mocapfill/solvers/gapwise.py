@@ -259,11 +259,15 @@ def _xyz(matrix: np.ndarray) -> np.ndarray:
     return matrix.reshape(-1, 3, matrix.shape[1]).transpose(2, 0, 1)
 
 
-def _kabsch(reference: np.ndarray, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rigid motions taking ``reference`` (k, 3) onto each of ``frames`` (L, k, 3)."""
-    pc = reference.mean(axis=0)
-    qc = frames.mean(axis=1)
-    H = np.einsum("ka,lkb->lab", reference - pc, frames - qc[:, None])
+def _kabsch(reference: np.ndarray, frames: np.ndarray, weights: np.ndarray | None = None
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Rigid motions taking ``reference`` (k, 3) onto each of ``frames`` (L, k, 3): the
+    least-squares fit over the k points, each weighted by ``weights`` (k,) where given."""
+    w = np.full(len(reference), 1.0 / len(reference)) if weights is None else (
+        np.asarray(weights, dtype=np.float64) / np.sum(weights))
+    pc = w @ reference
+    qc = np.einsum("k,lkb->lb", w, frames)
+    H = np.einsum("k,ka,lkb->lab", w, reference - pc, frames - qc[:, None])
     U, _, Vt = np.linalg.svd(H)
     V = np.swapaxes(Vt, 1, 2)
     sign = np.sign(np.linalg.det(V @ np.swapaxes(U, 1, 2)))
@@ -308,16 +312,24 @@ def distance_spread(P: np.ndarray, seen: np.ndarray, *, rows: Sequence[int] | No
 
 def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
                min_gap: int = MIN_MODEL_GAP, only: frozenset | None = None,
-               centre: np.ndarray | None = None) -> np.ndarray | None:
+               centre: np.ndarray | None = None, weighted: bool = False
+               ) -> np.ndarray | None:
     """Rigid-body fill: move the marker with its most rigidly attached visible markers.
 
     For a gap [a, b) of marker j, the ``donors`` markers observed on [a−1, b] whose
-    distance to j varies least are taken as one rigid body; the rigid motion (Kabsch)
-    from their positions at frame a−1 to those at every gap frame carries j's position
-    at a−1 into the gap, likewise from frame b, and the two are blended linearly so the
-    fill meets both ends exactly. Gaps shorter than ``min_gap`` and gaps without enough
-    donors get a linear fill. None when the rows are not markers. With ``only`` (a set of
-    (marker, start, stop)), other gaps keep the linear fill (:data:`FILLS_GAPS_ALONE`).
+    distance to j varies least (at least three of them) are taken as one rigid body; the
+    rigid motion (Kabsch) from their positions at frame a−1 to those at every gap frame
+    carries j's position at a−1 into the gap, likewise from frame b, and the two are
+    blended linearly so the fill meets both ends exactly. Gaps shorter than ``min_gap``
+    and gaps without three donors get a linear fill. None when the rows are not markers.
+    With ``only`` (a set of (marker, start, stop)), other gaps keep the linear fill
+    (:data:`FILLS_GAPS_ALONE`).
+
+    ``weighted``: each donor counts in the fit in inverse proportion to the variance of
+    its distance to j (``1 / spread²``: the weighted least squares of donors whose
+    departures from one rigid body are independent, of those sizes), so that more donors
+    can be taken without the looser ones bending the motion. The default's blend runs
+    both forms (:func:`mocapfill.solvers.trnn.complete`): three donors, and six weighted.
 
     ``centre`` (rows,): where each row's zero lies in true coordinates, for a matrix whose
     rows were centred one by one (the pipeline's unit scale). Centring each coordinate
@@ -340,13 +352,18 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
         usable = seen[a - 1:b + 1].all(axis=0)
         spread = np.where(usable, spread_all[j], np.inf)
         chosen = np.argsort(spread)[:donors]
-        if chosen.size < 3 or not np.isfinite(spread[chosen]).all():
+        chosen = chosen[np.isfinite(spread[chosen])]
+        if chosen.size < 3:
             continue
+        weights = None
+        if weighted:            # (a donor at exactly constant distance: a small floor)
+            variance = spread[chosen] ** 2
+            weights = 1.0 / (variance + 1e-6 * max(variance.max(), 1e-300))
         frames = P[a:b][:, chosen]
         s = np.arange(1, b - a + 1) / (b - a + 1)
         fill = np.zeros((b - a, 3))
         for ref, weight in ((a - 1, 1 - s), (b, s)):
-            R, t = _kabsch(P[ref, chosen], frames)
+            R, t = _kabsch(P[ref, chosen], frames, weights)
             fill += weight[:, None] * (R @ P[ref, j] + t)
         out[3 * j:3 * j + 3, a:b] = fill.T - shift[3 * j:3 * j + 3, None]
     return out

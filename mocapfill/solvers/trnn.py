@@ -358,7 +358,7 @@ def pca_offered(observed: np.ndarray, groups: np.ndarray) -> bool:
 # neither core is left alone with a long run at the end. The Gaussian EM costs most where
 # occlusions overlap in many patterns: on real clips with hundreds of gaps its validation
 # run (0.3–0.9 s, twice its fill's) came last and ran alone for 0.2–0.55 s.
-RUN_ORDER = ("trnn", "gaussian", "tsmc", "pca", "regression", "rigid")
+RUN_ORDER = ("trnn", "gaussian", "tsmc", "pca", "regression", "rigid", "rigid6")
 
 
 def complete_lowrank(matrix: np.ndarray, observed: np.ndarray, *, rank: int | None = None,
@@ -426,10 +426,16 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
     - ``rigid``: rigid-body motion of the three most rigidly attached visible markers
       (24 mm on 85_02 at ml = 40, where TrNN gives 60 and pca 22), fitted on the true
       positions (the pipeline's row centres added back: ``centre``).
+    - ``rigid6``: the same with the six most rigidly attached, each weighted by the
+      inverse variance of its distance to the marker. Alone in place of ``rigid``, four
+      to twelve donors helped the long gaps of 85_02 and hurt those of 85_12 and 10_01;
+      both forms side by side (thirty-second session, docs/results.md): CMU mean 3.19 →
+      2.73 mm (85_02 ml = 40 15.2 → 10.2), walkl 1.9833 → 1.9827 mm, the replay's
+      catastrophic fills 15 → 10 of 1,557.
     - ``pca``: Gløersen & Federolf (2016), where the clip has ≥ 60 complete frames (it is
       then cheap) or few models to make (:func:`pca_offered`); joined to the gap ends by
       the ramp of its offsets beside each gap (:func:`mocapfill.solvers.pca.gap_fill`).
-    - ``regression``, ``rigid`` and ``pca`` see the gaps under 5 frames filled first by
+    - ``regression``, ``rigid``, ``rigid6`` and ``pca`` see the gaps under 5 frames filled first by
       the cubic spline (:class:`~mocapfill.solvers.gapwise.ShortRunsFirst`; complete
       frames are counted so too): flicker otherwise leaves a long gap without a donor or
       predictor seen all through it, and a clip without complete frames. Long gaps
@@ -561,6 +567,10 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
     markers = groups.shape[1] == 3
     if markers:
         candidates["rigid"] = short_runs_first(partial(rigid_fill, centre=centre))
+        # Six donors weighted by their rigidity, beside the three most rigid unweighted:
+        # validation weighs them gap class by gap class (see ``complete``).
+        candidates["rigid6"] = short_runs_first(partial(rigid_fill, centre=centre, donors=6,
+                                                        weighted=True))
     if tsmc_offered(observed):
         candidates["tsmc"] = tsmc_fill
     if markers and pca_offered(observed, groups):

@@ -892,3 +892,39 @@ def test_the_weights_stand_where_no_fill_or_every_weighted_fill_leaves_the_band(
     expected = gap_truth.copy()
     expected[0] += bump * np.sin(np.pi * np.arange(1, 31) / 31)
     np.testing.assert_allclose(gap_fill, expected, atol=1e-12)
+
+
+def test_weighted_rigid_fill_leans_on_the_rigid_donors_among_loose_ones():
+    # Marker 0 is carried by markers 1-3 (one rigid body, 0.01 mm of noise) and, more
+    # loosely, by markers 4-6 (skin markers that slide 3-12 mm against it): six donors
+    # counted alike follow the loose ones' sliding; weighted by 1/spread² they give the
+    # rigid body's motion, as the three most rigid alone do.
+    from mocapfill.solvers.gapwise import rigid_fill
+
+    rng = np.random.default_rng(5)
+    n = 500
+    t = np.arange(n) / 100.0
+    angle = 0.9 * np.sin(1.1 * t)
+    c, s, zero, one = np.cos(angle), np.sin(angle), 0 * t, 1 + 0 * t
+    rotation = np.array([[c, -s, zero], [s, c, zero], [zero, zero, one]])     # (3, 3, n)
+    centre = np.stack([300 * np.sin(0.5 * t), 200 * np.cos(0.3 * t), 900 + 50 * t])
+    body = rng.uniform(-150, 150, size=(7, 3))
+    slide = np.zeros((7, 3, n))
+    for k, amplitude in zip((4, 5, 6), (3.0, 6.0, 12.0)):
+        slide[k] = amplitude * np.sin(2.3 * t + k)[None] * rng.normal(size=(3, 1))
+    markers = [np.einsum("abn,b->an", rotation, body[k]) + centre + slide[k]
+               + 0.01 * rng.normal(size=(3, n)) for k in range(7)]
+    truth = np.vstack(markers)
+    observed = _mask(7, n, [(0, 200, 300)])
+    matrix = np.where(observed, truth, 0.0)
+    gap = (slice(0, 3), slice(200, 300))
+
+    def error(fill):
+        return np.abs(fill[gap] - truth[gap]).max()
+
+    three = rigid_fill(matrix, observed)
+    weighted = rigid_fill(matrix, observed, donors=6, weighted=True)
+    alike = rigid_fill(matrix, observed, donors=6)
+    assert error(three) < 0.5 and error(weighted) < 0.5                       # mm
+    assert error(alike) > 5 * error(weighted)
+    np.testing.assert_array_equal(weighted[observed], matrix[observed])
