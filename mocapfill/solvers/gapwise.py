@@ -351,8 +351,7 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
     for j, a, b in gaps:
         usable = seen[a - 1:b + 1].all(axis=0)
         spread = np.where(usable, spread_all[j], np.inf)
-        chosen = np.argsort(spread)[:donors]
-        chosen = chosen[np.isfinite(spread[chosen])]
+        chosen = _distinct_donors(P[a - 1], np.argsort(spread), spread, donors)
         if chosen.size < 3:
             continue
         weights = None
@@ -367,6 +366,28 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
             fill += weight[:, None] * (R @ P[ref, j] + t)
         out[3 * j:3 * j + 3, a:b] = fill.T - shift[3 * j:3 * j + 3, None]
     return out
+
+
+def _distinct_donors(at: np.ndarray, order: np.ndarray, spread: np.ndarray, count: int
+                     ) -> np.ndarray:
+    """The first ``count`` markers of ``order`` with a finite ``spread``, passing over any
+    whose position ``at`` (markers, 3; one frame) is that of a marker already taken.
+
+    Some files hold one trajectory under several labels (a Qualisys file with each marker
+    also as ``NAME_2`` and ``NAME_3``: c3d.org's Sample26 Walking_Hybrid_2). Their
+    distances to the gapped marker vary alike, so the copies come out as its most rigid
+    donors together; copies of one point leave the rotation of the rigid body undefined,
+    and its fill was then whatever rounding made of it.
+    """
+    taken: list[int] = []
+    for d in order.tolist():
+        if len(taken) == count or not np.isfinite(spread[d]):
+            break
+        if taken and (np.abs(at[taken] - at[d]).max(axis=1)
+                      <= 1e-12 * (1.0 + np.abs(at[d]).max())).any():
+            continue
+        taken.append(d)
+    return np.array(taken, dtype=int)
 
 
 def _nearest_frames(a: int, b: int, n: int, count: int) -> np.ndarray:

@@ -928,3 +928,20 @@ def test_weighted_rigid_fill_leans_on_the_rigid_donors_among_loose_ones():
     assert error(three) < 0.5 and error(weighted) < 0.5                       # mm
     assert error(alike) > 5 * error(weighted)
     np.testing.assert_array_equal(weighted[observed], matrix[observed])
+
+
+def test_rigid_fill_takes_a_trajectory_held_under_several_labels_once():
+    # c3d.org's Qualisys Sample26 Walking_Hybrid_2 holds every marker three times (NAME,
+    # NAME_2, NAME_3, the same samples): the copies of the steadiest donor were taken as
+    # the three donors, one point, which leaves the body's rotation undefined.
+    from mocapfill.solvers.gapwise import rigid_fill
+
+    truth = _rigid_clip()[:12]                      # markers 0-3: one turning, moving body
+    noise = 0.002 * np.random.default_rng(21).normal(size=(15, 400))[3:6]
+    truth[3:6] -= noise                             # marker 1 the steadiest: no noise
+    copies = np.vstack([truth, truth[3:6], truth[3:6]])     # markers 4, 5: copies of 1
+    gap = [(0, 150, 200)]
+    alone = rigid_fill(np.where(_mask(4, 400, gap), truth, 0.0), _mask(4, 400, gap))
+    doubled = rigid_fill(np.where(_mask(6, 400, gap), copies, 0.0), _mask(6, 400, gap))
+    np.testing.assert_allclose(doubled[:12], alone, atol=1e-9)
+    assert np.abs(alone[0:3, 150:200] - truth[0:3, 150:200]).max() < 0.05
