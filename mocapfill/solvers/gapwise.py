@@ -853,7 +853,8 @@ def _rigid_partner_violations(matrix: np.ndarray, centre: np.ndarray | None,
 
     The partners of a gap [a, b) of marker j are, as :func:`rigid_fill` chooses its
     donors, the RIGID_PARTNERS markers observed on [a−1, b] whose distance to j varies
-    least over the clip; a partner's band is the range of that distance over the frames
+    least over the clip, a trajectory held under several labels once
+    (:func:`_distinct_donors`); a partner's band is the range of that distance over the frames
     seeing both, widened by PARTNER_MARGIN standard deviations. A fill violates a partner's
     band when the RMS over the gap of its distance outside the band exceeds
     PARTNER_TOLERANCE standard deviations, and the gap's band when it violates those of
@@ -865,8 +866,10 @@ def _rigid_partner_violations(matrix: np.ndarray, centre: np.ndarray | None,
         spread, lo, hi, others = bands[j]
         usable = before[others, b + 1] - before[others, a - 1] == b - a + 2
         ranked = np.where(usable, spread, np.inf)
-        chosen = np.argsort(ranked, kind="stable")[:RIGID_PARTNERS]
-        chosen = chosen[np.isfinite(ranked[chosen])]
+        rows = groups[others]                                      # (others, 3)
+        at = matrix[rows, a - 1] + (0.0 if centre is None else centre[rows])
+        chosen = _distinct_donors(at, np.argsort(ranked, kind="stable"), ranked,
+                                  RIGID_PARTNERS)
         if chosen.size == 0:
             continue
         partners = others[chosen]

@@ -945,3 +945,30 @@ def test_rigid_fill_takes_a_trajectory_held_under_several_labels_once():
     doubled = rigid_fill(np.where(_mask(6, 400, gap), copies, 0.0), _mask(6, 400, gap))
     np.testing.assert_allclose(doubled[:12], alone, atol=1e-9)
     assert np.abs(alone[0:3, 150:200] - truth[0:3, 150:200]).max() < 0.05
+
+
+def test_the_partner_check_counts_a_trajectory_held_under_several_labels_once():
+    # Marker 0's fill mirrored through marker 1 keeps its distance to marker 1 and leaves
+    # markers 2 and 3. With marker 1 held three times (copies as markers 5 and 6, the
+    # steadiest partners), its copies outvoted the others and the fill passed the check.
+    from mocapfill.solvers.gapwise import (
+        GapSet,
+        _partner_bands,
+        _rigid_partner_violations,
+        _seen_before,
+        interior_gaps,
+    )
+
+    truth = _rigid_clip()
+    truth[3:6] -= 0.002 * np.random.default_rng(21).normal(size=(15, 400))[3:6]
+    copies = np.vstack([truth, truth[3:6], truth[3:6]])
+    observed = _mask(7, 400, [(0, 150, 200)])
+    matrix = np.where(observed, copies, 0.0)
+    groups = row_groups(observed)
+    gapset = GapSet(groups, interior_gaps(observed, groups))
+    mirrored = 2 * copies[3:6, 150:200] - copies[0:3, 150:200]
+    segments = np.stack([copies[0:3, 150:200], mirrored])[None]       # (1 gap, 2, 3, 50)
+    off = _rigid_partner_violations(matrix, None, _seen_before(observed), groups,
+                                    gapset.spans, segments,
+                                    _partner_bands(matrix, observed, gapset, None))
+    assert off.tolist() == [[False, True]]
