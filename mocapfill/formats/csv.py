@@ -345,19 +345,9 @@ def _read_vicon(path: Path, lines: list[str], delimiter: str, rate: float | None
     complete = {name: axes for name, axes in blocks.items() if len(axes) == 3}
     if not complete:
         raise FormatError(path, "Vicon Trajectories section has no X, Y, Z marker columns")
-    labels = tuple(complete)
-    columns = np.array([[complete[n][a] for a in range(3)] for n in labels], dtype=int)
-    row_lines = _data_rows(lines, top + 5, delimiter, sectioned=True)
-    if row_lines.size == 0:
-        raise FormatError(path, "Vicon Trajectories section has no data rows")
-
-    def column_name(marker: int, axis: int) -> str:
-        return f"{labels[marker]}_{'XYZ'[axis]}"
-
-    width = RowWidth(_filled_width(axes_row), "the axis row has")
-    cut = find_cut_row(lines, row_lines, delimiter, width, columns)
-    positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
-                                        column_name, width, cut)
+    labels, columns, row_lines, width, cut, positions, observed = _marker_block(
+        path, lines, delimiter, complete, axes_row, top + 5, "Vicon Trajectories section",
+        "_", sectioned=True)
     frames = parse_column(path, lines, row_lines, 0, delimiter, "Frame", cut)
     unit_set = {units_row[c] for c in columns.reshape(-1)
                 if c < len(units_row) and units_row[c]}
@@ -421,19 +411,8 @@ def _read_motive(path: Path, lines: list[str], start: int, delimiter: str,
         found = f" (it holds {', '.join(sorted(ignored))} columns)" if ignored else ""
         raise FormatError(path, f"OptiTrack Motive CSV has no Marker position columns "
                                 f"(X, Y, Z){found}; export the markers too")
-    labels = tuple(complete)
-    columns = np.array([[complete[n][a] for a in range(3)] for n in labels], dtype=int)
-    row_lines = _data_rows(lines, axes_at + 1, delimiter)
-    if row_lines.size == 0:
-        raise FormatError(path, "OptiTrack Motive CSV has no data rows")
-
-    def column_name(marker: int, axis: int) -> str:
-        return f"{labels[marker]} {'XYZ'[axis]}"
-
-    width = RowWidth(_filled_width(axes_row), "the axis row has")
-    cut = find_cut_row(lines, row_lines, delimiter, width, columns)
-    positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
-                                        column_name, width, cut)
+    labels, columns, row_lines, width, cut, positions, observed = _marker_block(
+        path, lines, delimiter, complete, axes_row, axes_at + 1, "OptiTrack Motive CSV", " ")
     frames = parse_column(path, lines, row_lines, 0, delimiter, axes_row[0], cut)
     times = parse_column(path, lines, row_lines, 1, delimiter, axes_row[1], cut)
     stated = next(((key, take[key]) for key in ("export frame rate", "capture frame rate")
@@ -451,6 +430,29 @@ def _read_motive(path: Path, lines: list[str], start: int, delimiter: str,
                   MOTIVE_UNITS.get(length_units.lower(), length_units.lower())
                   or units or DEFAULT_UNITS,
                   source=source, path=path, first_frame=first_frame)
+
+
+def _marker_block(path: Path, lines: list[str], delimiter: str,
+                  complete: dict[str, dict[int, int]], axes_row: list[str], start: int,
+                  what: str, separator: str, *, sectioned: bool = False) -> tuple:
+    """The markers ``complete`` (name → {axis: column}, all three axes) of a layout with an
+    axis row (Vicon, Motive) and their samples in the data rows from line ``start``:
+    (labels, columns, row_lines, width, cut_row, positions, observed). A column is named
+    ``NAME{separator}X`` in an error message."""
+    labels = tuple(complete)
+    columns = np.array([[complete[n][a] for a in range(3)] for n in labels], dtype=int)
+    row_lines = _data_rows(lines, start, delimiter, sectioned=sectioned)
+    if row_lines.size == 0:
+        raise FormatError(path, f"{what} has no data rows")
+
+    def column_name(marker: int, axis: int) -> str:
+        return f"{labels[marker]}{separator}{'XYZ'[axis]}"
+
+    width = RowWidth(_filled_width(axes_row), "the axis row has")
+    cut = find_cut_row(lines, row_lines, delimiter, width, columns)
+    positions, observed = parse_markers(path, lines, row_lines, columns, delimiter,
+                                        column_name, width, cut)
+    return labels, columns, row_lines, width, cut, positions, observed
 
 
 def _read_headerless(path: Path, lines: list[str], start: int, delimiter: str,
