@@ -828,7 +828,7 @@ def repair_many(paths: Iterable[str | os.PathLike] | str | os.PathLike,
         Redo files whose output is newer than their input (skipped otherwise).
     zero_is_missing
         C3D, TRC and CSV: "auto", "on" or "off" (see ``mocapfill.formats.c3d`` and
-        ``mocapfill.formats._text.zeros_wanted``).
+        ``mocapfill.formats._text.read_zero_gaps``).
     max_gap_s
         Leave gaps longer than this many seconds, converted with each file's own rate
         (overrides ``options.max_gap_frames``).

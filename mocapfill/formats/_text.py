@@ -109,22 +109,16 @@ def check_zero_setting(zero_is_missing: str) -> None:
                              f"not {zero_is_missing!r}")
 
 
-def zeros_wanted(zero_is_missing: str) -> bool:
-    """Whether a text file's samples at exactly (0, 0, 0) are read as gaps: only with
-    ``zero_is_missing="on"``. ``"auto"`` reads them as data: unlike a QTM C3D file, a
-    text file carries no sign of the exporter that wrote its gaps so (formats-and-
-    conventions.md: QTM-derived TSV pipelines, the MoCap Toolbox)."""
-    check_zero_setting(zero_is_missing)
-    return zero_is_missing == "on"
-
-
 def read_zero_gaps(read: Callable[[Path, float | None, str | None], Motion], path: Path,
                    rate: float | None, units: str | None, zero_is_missing: str) -> Motion:
     """``read(path, rate, units)`` (a format's reader), its samples at exactly (0, 0, 0)
-    as gaps where ``zero_is_missing`` asks for it (:func:`zeros_wanted`, checked first)."""
-    zeros = zeros_wanted(zero_is_missing)
+    as gaps with ``zero_is_missing="on"`` (the setting checked first). ``"auto"`` reads
+    them as data: unlike a QTM C3D file, a text file carries no sign of the exporter that
+    wrote its gaps so (formats-and-conventions.md: QTM-derived TSV pipelines, the MoCap
+    Toolbox)."""
+    check_zero_setting(zero_is_missing)
     motion = read(Path(path), rate, units)
-    return with_zero_gaps(motion) if zeros else motion
+    return with_zero_gaps(motion) if zero_is_missing == "on" else motion
 
 
 def with_zero_gaps(motion: Motion) -> Motion:
