@@ -259,21 +259,20 @@ def _xyz(matrix: np.ndarray) -> np.ndarray:
     return matrix.reshape(-1, 3, matrix.shape[1]).transpose(2, 0, 1)
 
 
-def _kabsch(reference: np.ndarray, frames: np.ndarray, weights: np.ndarray | None = None
+def _kabsch(reference: np.ndarray, frames: np.ndarray, weights: np.ndarray
             ) -> tuple[np.ndarray, np.ndarray]:
-    """Rigid motions taking ``reference`` (k, 3) onto each of ``frames`` (L, k, 3): the
-    least-squares fit over the k points, each weighted by ``weights`` (k,) where given."""
-    w = np.full(len(reference), 1.0 / len(reference)) if weights is None else (
-        np.asarray(weights, dtype=np.float64) / np.sum(weights))
-    pc = w @ reference
-    qc = np.einsum("k,lkb->lb", w, frames)
-    H = np.einsum("k,ka,lkb->lab", w, reference - pc, frames - qc[:, None])
+    """Rigid motions taking each ``reference[l]`` (L, k, 3) onto ``frames[l]`` (L, k, 3):
+    the least-squares fits over the k points, weighted by ``weights`` (L, k; rows summing
+    to 1). Returns R (L, 3, 3) and t (L, 3)."""
+    pc = np.einsum("lk,lka->la", weights, reference)
+    qc = np.einsum("lk,lkb->lb", weights, frames)
+    H = np.einsum("lk,lka,lkb->lab", weights, reference - pc[:, None], frames - qc[:, None])
     U, _, Vt = np.linalg.svd(H)
     V = np.swapaxes(Vt, 1, 2)
     sign = np.sign(np.linalg.det(V @ np.swapaxes(U, 1, 2)))
     V[:, :, 2] *= sign[:, None]
     R = V @ np.swapaxes(U, 1, 2)
-    return R, qc - R @ pc
+    return R, qc - np.einsum("lab,lb->la", R, pc)
 
 
 # Donor candidates of :func:`rigid_fill` per gapped marker, on clips with more markers
@@ -345,27 +344,93 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
     shift = np.zeros(len(matrix)) if centre is None else np.asarray(centre, dtype=np.float64)
     P = _xyz(np.where(observed, matrix + shift[:, None], np.nan))
     seen = observed[0::3].T                                          # (n, markers)
-    gaps = [(j, a, b) for j, a, b in interior_gaps(observed, groups)
-            if b - a >= min_gap and (only is None or (j, a, b) in only)]
-    spread_all = distance_spread(P, seen, rows=sorted({j for j, _, _ in gaps}))
-    for j, a, b in gaps:
-        usable = seen[a - 1:b + 1].all(axis=0)
-        spread = np.where(usable, spread_all[j], np.inf)
-        chosen = _distinct_donors(P[a - 1], np.argsort(spread), spread, donors)
-        if chosen.size < 3:
+    spans = np.array([(j, a, b) for j, a, b in interior_gaps(observed, groups)
+                      if b - a >= min_gap and (only is None or (j, a, b) in only)],
+                     dtype=np.int64).reshape(-1, 3)
+    if not spans.size:
+        return out
+    j, a, b = spans.T
+    spread_all = distance_spread(P, seen, rows=np.unique(j).tolist())
+    # Donors seen on all of [a − 1, b]: counted from the unseen frames before each frame.
+    unseen = np.zeros((len(seen) + 1, seen.shape[1]), dtype=np.int64)
+    np.cumsum(~seen, axis=0, out=unseen[1:])
+    spread = np.where(unseen[b + 1] == unseen[a - 1], spread_all[j], np.inf)  # (gaps, k)
+    chosen = _distinct_donors_of_gaps(                               # (gaps, donors)
+        spread, donors, lambda g, columns: P[a[g, None] - 1, columns])
+    count = (chosen >= 0).sum(axis=1)
+    # The gaps with the same number of donors (three or more) in batches of at most
+    # _RIGID_BATCH gap frames: each batch one stack of 3 × 3 Kabsch problems, two per frame.
+    for size in range(3, donors + 1):
+        which = np.flatnonzero(count == size)
+        if not which.size:
             continue
-        weights = None
-        if weighted:            # (a donor at exactly constant distance: a small floor)
-            variance = spread[chosen] ** 2
-            weights = 1.0 / (variance + 1e-6 * max(variance.max(), 1e-300))
-        frames = P[a:b][:, chosen]
-        s = np.arange(1, b - a + 1) / (b - a + 1)
-        fill = np.zeros((b - a, 3))
-        for ref, weight in ((a - 1, 1 - s), (b, s)):
-            R, t = _kabsch(P[ref, chosen], frames, weights)
-            fill += weight[:, None] * (R @ P[ref, j] + t)
-        out[3 * j:3 * j + 3, a:b] = fill.T - shift[3 * j:3 * j + 3, None]
+        ends = np.cumsum(b[which] - a[which])
+        cuts = np.searchsorted(ends, np.arange(_RIGID_BATCH, ends[-1], _RIGID_BATCH))
+        for part in np.split(which, np.unique(cuts)):
+            if part.size:
+                _rigid_batch(out, P, shift, spans[part], chosen[part, :size],
+                             spread[part[:, None], chosen[part, :size]] if weighted else None)
     return out
+
+
+# Gap frames per batch of :func:`rigid_fill` (its arrays: about 0.5 KB per frame).
+_RIGID_BATCH = 1 << 15
+
+
+def _rigid_batch(out: np.ndarray, P: np.ndarray, shift: np.ndarray, spans: np.ndarray,
+                 chosen: np.ndarray, spread: np.ndarray | None) -> None:
+    """:func:`rigid_fill` of the gaps ``spans`` (gaps, 3), each moved with its donors
+    ``chosen`` (gaps, d), weighted by 1 / spread² where ``spread`` (gaps, d) is given."""
+    j, a, b = spans.T
+    lengths = b - a
+    gap = np.repeat(np.arange(len(spans)), lengths)                  # each gap frame's gap
+    step = np.arange(gap.size) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+    frames = a[gap] + step
+    s = ((step + 1) / (lengths[gap] + 1))[:, None]
+    if spread is None:
+        weights = np.full(chosen.shape, 1.0 / chosen.shape[1])
+    else:                       # (a donor at exactly constant distance: a small floor)
+        variance = spread ** 2
+        weights = 1.0 / (variance + 1e-6 * np.maximum(variance.max(axis=1, keepdims=True),
+                                                      1e-300))
+        weights /= weights.sum(axis=1, keepdims=True)
+    donors, w = chosen[gap], weights[gap]                            # (frames, d)
+    moved = P[frames[:, None], donors]                               # (frames, d, 3)
+    fill = np.zeros((gap.size, 3))
+    for ref, weight in ((a - 1, 1 - s), (b, s)):
+        R, t = _kabsch(P[ref[gap][:, None], donors], moved, w)
+        fill += weight * (np.einsum("lab,lb->la", R, P[ref[gap], j[gap]]) + t)
+    rows = 3 * j[gap][:, None] + np.arange(3)
+    out[rows, frames[:, None]] = fill - shift[rows]
+
+
+def _distinct_donors_of_gaps(spread: np.ndarray, count: int,
+                             at: Callable[[np.ndarray, np.ndarray], np.ndarray]
+                             ) -> np.ndarray:
+    """(gaps, count) :func:`_distinct_donors` of every gap at once, −1 past the last: of
+    gap g, the columns in order of ``spread[g]`` (gaps, columns), distinct in their
+    positions ``at(gs, columns)`` ((len(gs), c, 3) for the gaps gs and their columns
+    (len(gs), c)) at the frame before the gap. Where the first ``count`` finite ones hold
+    no copy of each other (all but files with a trajectory under several labels), they
+    are the answer; the other gaps are taken one by one."""
+    gaps = np.arange(len(spread))
+    order = np.argsort(spread, axis=1, kind="stable")[:, :count]
+    finite = np.isfinite(np.take_along_axis(spread, order, axis=1))
+    where = at(gaps, order)                                          # (gaps, c, 3)
+    apart = np.abs(where[:, :, None] - where[:, None]).max(axis=3)   # (gaps, c, c)
+    tolerance = 1e-12 * (1.0 + np.abs(where).max(axis=2))            # of the later one
+    earlier = np.triu(np.ones((order.shape[1],) * 2, dtype=bool), 1)
+    copies = ((apart <= tolerance[:, None, :]) & earlier
+              & finite[:, :, None] & finite[:, None, :])
+    chosen = np.full((len(spread), count), -1, dtype=np.int64)
+    chosen[:, :order.shape[1]] = np.where(finite, order, -1)
+    columns = np.arange(spread.shape[1])[None]
+    for g in np.flatnonzero(copies.any(axis=(1, 2))).tolist():
+        taken = _distinct_donors(at(gaps[g:g + 1], columns)[0],
+                                 np.argsort(spread[g], kind="stable"), spread[g], count)
+        chosen[g] = -1
+        chosen[g, :taken.size] = taken
+    return chosen
 
 
 def _distinct_donors(at: np.ndarray, order: np.ndarray, spread: np.ndarray, count: int
@@ -861,29 +926,34 @@ def _rigid_partner_violations(matrix: np.ndarray, centre: np.ndarray | None,
     PARTNER_VOTES partners (all of them where there are fewer).
     """
     gaps, k, _, length = segments.shape
-    out = np.zeros((gaps, k), dtype=bool)
-    for index, (j, a, b) in enumerate(spans.tolist()):
-        spread, lo, hi, others = bands[j]
-        usable = before[others, b + 1] - before[others, a - 1] == b - a + 2
-        ranked = np.where(usable, spread, np.inf)
-        rows = groups[others]                                      # (others, 3)
-        at = matrix[rows, a - 1] + (0.0 if centre is None else centre[rows])
-        chosen = _distinct_donors(at, np.argsort(ranked, kind="stable"), ranked,
-                                  RIGID_PARTNERS)
-        if chosen.size == 0:
-            continue
-        partners = others[chosen]
-        where = matrix[groups[partners], a:b]                      # (p, 3, length)
-        if centre is not None:
-            where = where + centre[groups[partners]][:, :, None]
-        dist = np.sqrt(((segments[index][:, None] - where[None]) ** 2).sum(axis=2))
-        margin = PARTNER_MARGIN * spread[chosen][:, None]
-        excess = np.maximum(np.maximum(dist - (hi[chosen][:, None] + margin), 0.0),
-                            (lo[chosen][:, None] - margin) - dist)  # (k, p, length)
-        rms = np.sqrt((excess ** 2).mean(axis=2))                   # (k, p)
-        outside = rms > PARTNER_TOLERANCE * spread[chosen][None] + 1e-12
-        out[index] = outside.sum(axis=1) >= min(PARTNER_VOTES, chosen.size)
-    return out
+    j, a, b = spans.T
+    markers, row = np.unique(j, return_inverse=True)
+    spread, lo, hi, others = (np.stack(table)[row] for table in       # (gaps, candidates)
+                              zip(*(bands[m] for m in markers.tolist())))
+    usable = (before[others, (b + 1)[:, None]] - before[others, (a - 1)[:, None]]
+              == (b - a + 2)[:, None])
+    ranked = np.where(usable, spread, np.inf)
+    shift = np.zeros(len(matrix)) if centre is None else centre
+
+    def at(g: np.ndarray, columns: np.ndarray) -> np.ndarray:
+        rows = groups[np.take_along_axis(others[g], columns, axis=1)]   # (g, c, 3)
+        return matrix[rows, (a[g] - 1)[:, None, None]] + shift[rows]
+
+    chosen = _distinct_donors_of_gaps(ranked, RIGID_PARTNERS, at)   # (gaps, p), −1: none
+    taken = chosen >= 0
+    column = np.where(taken, chosen, 0)
+    rows = groups[np.take_along_axis(others, column, axis=1)]       # (gaps, p, 3)
+    where = (matrix[rows[..., None], (a[:, None] + np.arange(length))[:, None, None]]
+             + shift[rows][..., None])                               # (gaps, p, 3, length)
+    dist = np.sqrt(((segments[:, :, None] - where[:, None]) ** 2).sum(axis=3))
+    spread, lo, hi = (np.take_along_axis(table, column, axis=1)[:, None, :, None]
+                      for table in (spread, lo, hi))                 # (gaps, 1, p, 1)
+    margin = PARTNER_MARGIN * spread
+    excess = np.maximum(np.maximum(dist - (hi + margin), 0.0), (lo - margin) - dist)
+    rms = np.sqrt((excess ** 2).mean(axis=3))                        # (gaps, k, p)
+    outside = (rms > PARTNER_TOLERANCE * spread[..., 0] + 1e-12) & taken[:, None]
+    votes = np.minimum(PARTNER_VOTES, taken.sum(axis=1))[:, None]
+    return (outside.sum(axis=2) >= votes) & (votes > 0)
 
 
 def _median_of(values: np.ndarray, mask: np.ndarray) -> np.ndarray:

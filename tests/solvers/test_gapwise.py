@@ -972,3 +972,50 @@ def test_the_partner_check_counts_a_trajectory_held_under_several_labels_once():
                                     gapset.spans, segments,
                                     _partner_bands(matrix, observed, gapset, None))
     assert off.tolist() == [[False, True]]
+
+
+def test_the_donors_of_all_gaps_at_once_are_those_chosen_gap_by_gap():
+    # _distinct_donors_of_gaps takes the first finite columns where they hold no copies
+    # and goes gap by gap elsewhere: against _distinct_donors on random spreads with
+    # infinite entries, ties and copied positions.
+    from mocapfill.solvers.gapwise import _distinct_donors, _distinct_donors_of_gaps
+
+    rng = np.random.default_rng(8)
+    gaps, columns = 300, 9
+    spread = rng.choice([0.5, 1.0, 2.0, 3.0, np.inf], size=(gaps, columns)) \
+        + rng.uniform(0, 0.1, size=(gaps, columns)) * rng.integers(0, 2, (gaps, columns))
+    positions = rng.normal(size=(gaps, columns, 3)) * 100
+    copied = rng.random(gaps) < 0.3                     # a third of the gaps hold a copy
+    positions[copied, 1] = positions[copied, 4]
+    positions[copied, 6] = positions[copied, 4]
+
+    def at(g, cols):
+        return np.take_along_axis(positions[g], cols[:, :, None], axis=1)
+
+    for count in (1, 3, 6, 12):
+        chosen = _distinct_donors_of_gaps(spread, count, at)
+        for g in range(gaps):
+            one = _distinct_donors(positions[g], np.argsort(spread[g], kind="stable"),
+                                   spread[g], count)
+            assert chosen[g].tolist() == one.tolist() + [-1] * (count - one.size)
+    # (and the copies did change some choices: a gap by gap answer skipped a column)
+    first = np.argsort(spread, axis=1, kind="stable")[:, :6]
+    first = np.where(np.isfinite(np.take_along_axis(spread, first, axis=1)), first, -1)
+    assert (_distinct_donors_of_gaps(spread, 6, at) != first).any(axis=1).sum() >= 5
+
+
+def test_rigid_fill_in_batches_of_few_frames_fills_alike(monkeypatch):
+    # The gaps are filled in batches of at most _RIGID_BATCH gap frames: batches cut
+    # anywhere give the same fill (one gap longer than a batch is a batch of its own).
+    from mocapfill.solvers import gapwise
+
+    truth = _rigid_clip()
+    observed = _mask(5, 400, [(0, 20, 31), (0, 150, 230), (1, 40, 47), (4, 300, 390),
+                              (2, 60, 66), (0, 260, 268)])
+    matrix = np.where(observed, truth, 0.0)
+    whole = gapwise.rigid_fill(matrix, observed, donors=4, weighted=True)
+    monkeypatch.setattr(gapwise, "_RIGID_BATCH", 9)
+    np.testing.assert_allclose(gapwise.rigid_fill(matrix, observed, donors=4,
+                                                  weighted=True), whole, rtol=0, atol=1e-9)
+    assert not np.array_equal(whole[~observed], gapwise.linear_fill(matrix,
+                                                                    observed)[~observed])
