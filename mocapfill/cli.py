@@ -322,17 +322,17 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
     if gaps_report is not None:
         _check_gaps_report(gaps_report, in_path, out_path)
     motion = _read(in_path, zero_is_missing)
-    from .report import reader_notes
-
-    for note in reader_notes(motion):     # e.g. a cut last row: the user should know
-        click.echo(f"mocapfill: note: {in_path}: {note}", err=True)
     # A BVH/AMC written back to its own format is completed in joint-channel space.
     space = "channels" if formats.same_skeleton_format(in_path, out_path) else "positions"
     from .pipeline import reporting_windows
 
     with _WindowProgress() as progress, reporting_windows(progress):
         result = run_repair(motion, options(_parse_max_gap(max_gap, motion.rate, in_path), space))
-    _write_noting(result.motion, out_path)
+    from .report import reader_notes
+
+    # What the reader worked around (a cut last row: the user should know), shown with
+    # the writer's notes once OUT is written: a repair that fails shows its error alone.
+    _write_noting(result.motion, out_path, read=(in_path, reader_notes(motion)))
     if gaps_report is not None:
         from .report import write_gaps_report
 
@@ -757,13 +757,18 @@ def convert(in_path: Path, out_path: Path, zero_is_missing: str) -> None:
                "frames", err=True)
 
 
-def _write_noting(motion, out_path: Path) -> None:
-    """Write OUT and show, as reader notes are shown, what its format could not hold as
-    the clip had it (model outputs left out of a TRC, lengths converted to mm)."""
+def _write_noting(motion, out_path: Path,
+                  read: tuple[Path, tuple[str, ...]] | None = None) -> None:
+    """Write OUT, then show what its format could not hold as the clip had it (model
+    outputs left out of a TRC, lengths converted to mm), after ``read``'s notes (IN and
+    what its reader worked around), if given. Shown once OUT is written, so that a
+    command that fails prints its one error line alone."""
     from . import formats
 
-    for note in formats.write(motion, out_path):
-        click.echo(f"mocapfill: note: {out_path}: {note}", err=True)
+    written = formats.write(motion, out_path)
+    for path, notes in ([read] if read else []) + [(out_path, written)]:
+        for note in notes:
+            click.echo(f"mocapfill: note: {path}: {note}", err=True)
 
 
 # ---------------------------------------------------------------- bench

@@ -1075,3 +1075,24 @@ def test_zero_is_missing_on_for_a_format_that_cannot_hold_it_is_noted(tmp_path):
     assert (f"mocapfill: note: {src}: --zero-is-missing on applies to C3D, TRC and CSV "
             "files only; samples at exactly (0, 0, 0) in this file are read as data"
             in result.stderr)
+
+
+def test_reader_notes_follow_the_written_output_and_a_failing_repair_prints_one_line(
+        tmp_path):
+    # A CSV cut inside its last row gets a reader note. It used to be printed before the
+    # repair ran, so a repair that then failed (here on --max-gap, which needs the file's
+    # rate) printed the note and its error: two lines. Now the notes come once OUT is
+    # written, before the summary.
+    src = tmp_path / "cut.csv"
+    formats.write(with_gap(smooth_clip(200, 4), 1, 50, 80), src)
+    text = src.read_text()
+    src.write_text(text[:text.rstrip("\n").rfind(",") + 3])    # the last cell cut short
+    failed = run("repair", src, tmp_path / "out.csv", "--max-gap", "-3")
+    assert failed.exit_code == 2
+    assert failed.stderr.count("\n") == 1 and "error: --max-gap" in failed.stderr
+    assert not (tmp_path / "out.csv").exists()
+    done = run("repair", src, tmp_path / "out.csv")
+    assert done.exit_code == 0, done.output
+    lines = done.stderr.splitlines()
+    assert lines[0].startswith(f"mocapfill: note: {src}: ") and "cut short" in lines[0]
+    assert lines[-1].startswith(f"{src} -> ") and len(lines) == 2
