@@ -930,6 +930,8 @@ def _rigid_partner_violations(matrix: np.ndarray, centre: np.ndarray | None,
     markers, row = np.unique(j, return_inverse=True)
     spread, lo, hi, others = (np.stack(table)[row] for table in       # (gaps, candidates)
                               zip(*(bands[m] for m in markers.tolist())))
+    if not others.shape[1]:                                 # a clip of one marker
+        return np.zeros((gaps, k), dtype=bool)
     usable = (before[others, (b + 1)[:, None]] - before[others, (a - 1)[:, None]]
               == (b - a + 2)[:, None])
     ranked = np.where(usable, spread, np.inf)
