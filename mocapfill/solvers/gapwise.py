@@ -341,52 +341,85 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
     if groups.shape[1] != 3:
         return None
     out = linear_fill(matrix, observed)
-    shift = np.zeros(len(matrix)) if centre is None else np.asarray(centre, dtype=np.float64)
-    P = _xyz(np.where(observed, matrix + shift[:, None], np.nan))
-    seen = observed[0::3].T                                          # (n, markers)
     spans = np.array([(j, a, b) for j, a, b in interior_gaps(observed, groups)
                       if b - a >= min_gap and (only is None or (j, a, b) in only)],
                      dtype=np.int64).reshape(-1, 3)
     if not spans.size:
         return out
+    P, shift, seen, chosen, spread = _rigid_donors(matrix, observed, spans, donors, centre)
+    for part, fill in _rigid_motions(P, spans, chosen, spread if weighted else None):
+        gap, frames = _gap_frames_of(spans[part])
+        rows = 3 * spans[part][gap, 0][:, None] + np.arange(3)
+        out[rows, frames[:, None]] = fill - shift[rows]
+    return out
+
+
+def _rigid_donors(matrix: np.ndarray, observed: np.ndarray, spans: np.ndarray, donors: int,
+                  centre: np.ndarray | None):
+    """What :func:`rigid_fill` moves the gaps ``spans`` (gaps, 3) with: the true positions
+    P (n, markers, 3; NaN where unseen), the rows' ``shift`` (centre), the markers' mask
+    (n, markers), and each gap's donors (gaps, donors; −1 past the last) with their
+    distance spreads to the gapped marker (gaps, donors)."""
+    shift = np.zeros(len(matrix)) if centre is None else np.asarray(centre, dtype=np.float64)
+    P = _xyz(np.where(observed, matrix + shift[:, None], np.nan))
+    seen = observed[0::3].T                                          # (n, markers)
     j, a, b = spans.T
     spread_all = distance_spread(P, seen, rows=np.unique(j).tolist())
     # Donors seen on all of [a − 1, b]: counted from the unseen frames before each frame.
-    unseen = np.zeros((len(seen) + 1, seen.shape[1]), dtype=np.int64)
-    np.cumsum(~seen, axis=0, out=unseen[1:])
+    unseen = _unseen_before(seen)
     spread = np.where(unseen[b + 1] == unseen[a - 1], spread_all[j], np.inf)  # (gaps, k)
     chosen = _distinct_donors_of_gaps(                               # (gaps, donors)
         spread, donors, lambda g, columns: P[a[g, None] - 1, columns])
+    return P, shift, seen, chosen, np.take_along_axis(spread, np.maximum(chosen, 0), axis=1)
+
+
+def _unseen_before(seen: np.ndarray) -> np.ndarray:
+    """(n + 1, markers): how many frames before each frame miss each marker."""
+    unseen = np.zeros((len(seen) + 1, seen.shape[1]), dtype=np.int64)
+    np.cumsum(~seen, axis=0, out=unseen[1:])
+    return unseen
+
+
+def _gap_frames_of(spans: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each frame of the gaps ``spans`` (gaps, 3), in gap order: its gap's index, its frame."""
+    lengths = spans[:, 2] - spans[:, 1]
+    gap = np.repeat(np.arange(len(spans)), lengths)
+    step = np.arange(gap.size) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+    return gap, spans[gap, 1] + step
+
+
+def _rigid_motions(P: np.ndarray, spans: np.ndarray, chosen: np.ndarray,
+                   spread: np.ndarray | None):
+    """(gap indices, fill (frames, 3) in true positions) of :func:`rigid_fill` for the gaps
+    with three donors or more, batch by batch: the gaps with the same number of donors in
+    batches of at most _RIGID_BATCH gap frames, each one stack of 3 × 3 Kabsch problems,
+    two per frame."""
     count = (chosen >= 0).sum(axis=1)
-    # The gaps with the same number of donors (three or more) in batches of at most
-    # _RIGID_BATCH gap frames: each batch one stack of 3 × 3 Kabsch problems, two per frame.
-    for size in range(3, donors + 1):
+    lengths = spans[:, 2] - spans[:, 1]
+    for size in range(3, chosen.shape[1] + 1):
         which = np.flatnonzero(count == size)
         if not which.size:
             continue
-        ends = np.cumsum(b[which] - a[which])
+        ends = np.cumsum(lengths[which])
         cuts = np.searchsorted(ends, np.arange(_RIGID_BATCH, ends[-1], _RIGID_BATCH))
         for part in np.split(which, np.unique(cuts)):
             if part.size:
-                _rigid_batch(out, P, shift, spans[part], chosen[part, :size],
-                             spread[part[:, None], chosen[part, :size]] if weighted else None)
-    return out
+                yield part, _rigid_batch(P, spans[part], chosen[part, :size],
+                                         None if spread is None else spread[part, :size])
 
 
 # Gap frames per batch of :func:`rigid_fill` (its arrays: about 0.5 KB per frame).
 _RIGID_BATCH = 1 << 15
 
 
-def _rigid_batch(out: np.ndarray, P: np.ndarray, shift: np.ndarray, spans: np.ndarray,
-                 chosen: np.ndarray, spread: np.ndarray | None) -> None:
-    """:func:`rigid_fill` of the gaps ``spans`` (gaps, 3), each moved with its donors
-    ``chosen`` (gaps, d), weighted by 1 / spread² where ``spread`` (gaps, d) is given."""
+def _rigid_batch(P: np.ndarray, spans: np.ndarray, chosen: np.ndarray,
+                 spread: np.ndarray | None) -> np.ndarray:
+    """(frames, 3) :func:`rigid_fill` of the gaps ``spans`` (gaps, 3) in true positions,
+    frame by frame in gap order, each gap moved with its donors ``chosen`` (gaps, d),
+    weighted by 1 / spread² where ``spread`` (gaps, d) is given."""
     j, a, b = spans.T
-    lengths = b - a
-    gap = np.repeat(np.arange(len(spans)), lengths)                  # each gap frame's gap
-    step = np.arange(gap.size) - np.repeat(np.cumsum(lengths) - lengths, lengths)
-    frames = a[gap] + step
-    s = ((step + 1) / (lengths[gap] + 1))[:, None]
+    gap, frames = _gap_frames_of(spans)
+    s = ((frames - a[gap] + 1) / (b - a + 1)[gap])[:, None]
     if spread is None:
         weights = np.full(chosen.shape, 1.0 / chosen.shape[1])
     else:                       # (a donor at exactly constant distance: a small floor)
@@ -400,8 +433,65 @@ def _rigid_batch(out: np.ndarray, P: np.ndarray, shift: np.ndarray, spans: np.nd
     for ref, weight in ((a - 1, 1 - s), (b, s)):
         R, t = _kabsch(P[ref[gap][:, None], donors], moved, w)
         fill += weight * (np.einsum("lab,lb->la", R, P[ref[gap], j[gap]]) + t)
-    rows = 3 * j[gap][:, None] + np.arange(3)
-    out[rows, frames[:, None]] = fill - shift[rows]
+    return fill
+
+
+# Windows beside a gap on which :func:`rigid_local_errors` tries the gap's rigid body: at
+# offsets 0 and 1 (in window lengths plus a frame) before and after it.
+LOCAL_WINDOWS = 2
+# The most by which the rigid fills' weight on a long gap is multiplied or divided, as their
+# error tried beside the gap compares with that on the stand-ins (:func:`_locally_checked`).
+# Their weight comes from stand-ins of their length class, placed among all the clip's
+# markers; a real gap often loses its rigid neighbours with it (one occlusion), and the
+# fill then moves the marker with looser ones. Tried beside the gap with the gap's own
+# donors, the error follows the fill's error on the gap: Spearman 0.90 on the 1,476
+# hidden gaps with three donors of ``scripts/replay_gaps.py``. Measured (thirty-third
+# session, docs/results.md), the replay's catastrophic fills and mean error over its 1,557
+# gaps, and the sum of the CMU ml = 20/40/60 cells (3 seeds): without 10, 3.924 mm,
+# 59.75 mm; factor t/e within [1/2, 2]: 7, 3.888, 58.95; within [1/4, 4]: 8, 3.898,
+# 58.58; (t/e)² within [1/4, 4]: 6, 3.968 (worse on 9 of 18 clips); cutting only (t/e
+# capped at 1), squared: 7, 4.020. The walking set stayed at 1.9827 mm.
+LOCAL_CLIP = 2.0
+
+
+def rigid_local_errors(matrix: np.ndarray, observed: np.ndarray, spans: np.ndarray, *,
+                       donors: int = 3, weighted: bool = False,
+                       centre: np.ndarray | None = None) -> np.ndarray:
+    """(gaps,) RMS error per coordinate of :func:`rigid_fill` beside each gap of ``spans``
+    (gaps, 3): the gap's own donors (those seen all through it) carry the marker over
+    windows of the gap's length where all of them and the marker are seen, up to
+    LOCAL_WINDOWS on each side of the gap (a frame apart from it and from each other), and
+    the fill is compared with the marker's samples there. NaN for a gap with no such
+    window or fewer than three donors. The rigid fill's error on the gap itself follows
+    it closely, because the donors are the gap's: where the neighbours occluded with the
+    marker were its rigid ones, the loose ones left carry it badly beside the gap too.
+    """
+    n = matrix.shape[1]
+    P, _, seen, chosen, spread = _rigid_donors(matrix, observed, spans, donors, centre)
+    j, a, b = spans.T
+    length = b - a
+    starts = [a - (length + 1) * (i + 1) for i in range(LOCAL_WINDOWS)] + \
+        [b + 1 + (length + 1) * i for i in range(LOCAL_WINDOWS)]
+    unseen = _unseen_before(seen)
+    sums, counts = np.zeros(len(spans)), np.zeros(len(spans))
+    columns = np.where(chosen >= 0, chosen, j[:, None])             # (the marker: seen)
+    for start in starts:
+        ok = (start >= 1) & (start + length + 1 <= n) & ((chosen >= 0).sum(axis=1) >= 3)
+        lo, hi = np.clip(start - 1, 0, n), np.clip(start + length + 1, 0, n)
+        clear = (unseen[hi[:, None], columns] == unseen[lo[:, None], columns]).all(axis=1)
+        ok &= clear & (unseen[hi, j] == unseen[lo, j])
+        which = np.flatnonzero(ok)
+        if not which.size:
+            continue
+        windows = np.stack([j[which], start[which], start[which] + length[which]], axis=1)
+        for part, fill in _rigid_motions(P, windows, chosen[which],
+                                         spread[which] if weighted else None):
+            gap, frames = _gap_frames_of(windows[part])
+            error = ((fill - P[frames, windows[part][gap, 0]]) ** 2).sum(axis=1)
+            np.add.at(sums, which[part][gap], error)
+            np.add.at(counts, which[part][gap], 3.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.sqrt(sums / counts)
 
 
 def _distinct_donors_of_gaps(spread: np.ndarray, count: int,
@@ -1045,6 +1135,53 @@ def _gap_weights(gapset: GapSet, weights: dict[int, np.ndarray],
     return gap_weights
 
 
+def _local_errors(checks: dict[int, Callable[[np.ndarray], np.ndarray]], gapset: GapSet
+                  ) -> dict[int, np.ndarray]:
+    """Candidate index → (long gaps,) its ``check``'s errors beside the gaps of
+    MIN_MODEL_GAP frames or more (see :func:`_locally_checked`)."""
+    long = gapset.spans[gapset.lengths >= MIN_MODEL_GAP]
+    return {column: check(long) for column, check in checks.items()} if long.size else {}
+
+
+def _locally_checked(gap_weights: list[np.ndarray], gapset: GapSet,
+                     errors: dict[int, list[Evidence]], tried: dict[int, np.ndarray]
+                     ) -> list[np.ndarray]:
+    """The gaps' weights with those of some candidates scaled gap by gap by how their fill
+    fared when tried beside the gap (gaps of MIN_MODEL_GAP frames or more).
+
+    ``tried``: candidate index → (long gaps,) the RMS error per sample of its fill of
+    each long gap tried beside it (NaN: not tried; see :func:`rigid_local_errors`). With t
+    the candidate's typical error on the stand-ins of the gap's length class (the median
+    over them of its RMS error) and e that error beside the gap, its weight on the gap is
+    multiplied by t / e, within [1 / LOCAL_CLIP, LOCAL_CLIP], and the weights are
+    normalised again.
+    """
+    lengths = gapset.lengths
+    long = np.flatnonzero(lengths >= MIN_MODEL_GAP)
+    if not long.size or not tried or not errors:
+        return gap_weights
+    classes = length_classes(lengths[long])
+    typical = {}
+    for cls in np.unique(classes).tolist():
+        blocks = errors.get(cls) or errors[min(errors, key=lambda c: (abs(c - cls), -c))]
+        grams, sizes = _stack(blocks)
+        rms = np.sqrt(np.diagonal(grams, axis1=1, axis2=2) / sizes[:, None])
+        typical[cls] = np.median(rms, axis=0)                       # (k,)
+    t = np.stack([typical[c] for c in classes.tolist()])            # (long gaps, k)
+    factor = np.ones_like(t)
+    for column, e in tried.items():
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = t[:, column] / e
+        factor[:, column] = np.where(np.isfinite(ratio) & (e > 0),
+                                     np.clip(ratio, 1 / LOCAL_CLIP, LOCAL_CLIP), 1.0)
+    out = list(gap_weights)
+    for position in np.flatnonzero((factor != 1).any(axis=1)).tolist():
+        w = gap_weights[long[position]] * factor[position]
+        if w.sum() > 0:
+            out[long[position]] = w / w.sum()
+    return out
+
+
 def _stand_in_errors(fill_fn: Candidate, blinded: np.ndarray, train: np.ndarray,
                      matrix: np.ndarray, rows: np.ndarray, frames: np.ndarray,
                      spans: frozenset) -> np.ndarray:
@@ -1087,7 +1224,8 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
           prior: dict[str, float] | None = None, prior_share: float = 0.5,
           validation: Validation | None = None, costly: tuple[str, ...] = (),
           optional: tuple[str, ...] = (), validators: dict[str, Candidate] | None = None,
-          once: tuple[str, ...] = (), centre: np.ndarray | None = None
+          once: tuple[str, ...] = (), centre: np.ndarray | None = None,
+          local_checks: dict[str, Callable[[np.ndarray], np.ndarray]] | None = None
           ) -> tuple[np.ndarray, BlendReport]:
     """Fill every interior gap with a validated convex blend of the candidate fills.
 
@@ -1143,6 +1281,12 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         pipeline's row-wise centring, :class:`mocapfill.scaling.UnitScale`): the
         rigid-partner check adds it back to measure true distances between markers
         (without it, those of ``matrix`` as it is).
+    local_checks
+        name → a function of gaps' spans (gaps, 3) giving that candidate's RMS error per
+        sample when its fill of each gap is tried beside the gap, on the real mask
+        (:func:`rigid_local_errors`): its weight on each long gap is scaled by how that
+        compares with its error on the stand-ins (:func:`_locally_checked`). Run beside
+        the candidates (it needs none of them).
 
     Returns
     -------
@@ -1223,18 +1367,23 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     # The ``optional`` candidates' fills wait for the weights, which need the validation.
     # The rigid-partner check's distance bands need no candidate: made beside them.
     centre = None if centre is None else np.asarray(centre, dtype=np.float64)
-    bands_job = partial(_partner_bands, matrix, observed, gapset, centre)
-    bands = None
+    # So are the local checks' errors beside the long gaps.
+    context = {"bands": partial(_partner_bands, matrix, observed, gapset, centre)}
+    if local_checks:
+        context["checks"] = partial(_local_errors, {names.index(name): check for name, check
+                                                    in local_checks.items() if name in names},
+                                    gapset)
+    made: dict = {}
     if hidden:
         keys = [(kind, i) for i in order for kind in ("trial", "fill")
                 if kind == "trial" or (names[i] not in optional and i not in ran_once)]
-        keys.append(("bands", -1))
+        keys += [(kind, -1) for kind in context]
         done = dict(zip(keys, run_all([trials[i] if kind == "trial" else
-                                       fill_job(i) if kind == "fill" else bands_job
+                                       fill_job(i) if kind == "fill" else context[kind]
                                        for kind, i in keys],
                                       apart=[k for k, (kind, _) in enumerate(keys)
                                              if kind == "trial"])))
-        bands = done.pop(("bands", -1))
+        made = {kind: done.pop((kind, -1)) for kind in context}
         for i in range(len(names)):
             fills[i] = done.get(("fill", i))
             if i in ran_once:
@@ -1251,11 +1400,14 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     later = [i for i in order if fills[i] is None and (names[i] not in optional or used[i])]
     if all(fill is None for fill in fills) and not later:
         later = [names.index(default)]
-    late = run_all([fill_job(i) for i in later] + ([bands_job] if bands is None else []))
-    if bands is None:
-        bands = late.pop()
+    missing = [kind for kind in context if kind not in made]
+    late = run_all([fill_job(i) for i in later] + [context[kind] for kind in missing])
+    made.update(zip(missing, late[len(later):]))
     for i, fill in zip(later, late):
         fills[i] = fill
+    bands = made["bands"]
+    if local_checks:        # (it scales weights, and leaves those at zero there: ``used``)
+        gap_weights = _locally_checked(gap_weights, gapset, errors, made["checks"])
     ran = [i for i in range(len(names)) if fills[i] is not None]
 
     # The default's fill takes the end gaps; where it was not run (``optional``), that of

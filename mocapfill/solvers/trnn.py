@@ -432,6 +432,11 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
       both forms side by side (thirty-second session, docs/results.md): CMU mean 3.19 →
       2.73 mm (85_02 ml = 40 15.2 → 10.2), walkl 1.9833 → 1.9827 mm, the replay's
       catastrophic fills 15 → 10 of 1,557.
+    - On each gap of 5 frames or more, the two rigid fills' weights are scaled by how the
+      fill fares beside the gap with the gap's own donors (:data:`~.gapwise.LOCAL_CLIP`,
+      :func:`~.gapwise.rigid_local_errors`): the stand-ins cannot show that a real gap
+      lost its rigid neighbours with it (thirty-third session: the replay's catastrophic
+      fills 10 → 7 of 1,557, mean 3.924 → 3.888 mm; CMU ml cells' sum 59.75 → 58.95 mm).
     - ``pca``: Gløersen & Federolf (2016), where the clip has ≥ 60 complete frames (it is
       then cheap) or few models to make (:func:`pca_offered`); joined to the gap ends by
       the ramp of its offsets beside each gap (:func:`mocapfill.solvers.pca.gap_fill`).
@@ -565,12 +570,12 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
     # marker); a channel matrix or a mask split within a marker gets the other fillers.
     groups = row_groups(observed)
     markers = groups.shape[1] == 3
-    if markers:
-        candidates["rigid"] = short_runs_first(partial(rigid_fill, centre=centre))
-        # Six donors weighted by their rigidity, beside the three most rigid unweighted:
-        # validation weighs them gap class by gap class (see ``complete``).
-        candidates["rigid6"] = short_runs_first(partial(rigid_fill, centre=centre, donors=6,
-                                                        weighted=True))
+    # Six donors weighted by their rigidity, beside the three most rigid unweighted:
+    # validation weighs them gap class by gap class (see ``complete``), and each long gap
+    # by how the fill fares beside it with the gap's own donors (blend's local_checks).
+    rigid_forms = {"rigid": {}, "rigid6": {"donors": 6, "weighted": True}} if markers else {}
+    for name, options in rigid_forms.items():
+        candidates[name] = short_runs_first(partial(rigid_fill, centre=centre, **options))
     if tsmc_offered(observed):
         candidates["tsmc"] = tsmc_fill
     if markers and pca_offered(observed, groups):
@@ -584,6 +589,9 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
             partial(pca, max_models=WINDOW_PCA_MODELS if skip_unweighted else PCA_MODELS,
                     centre=centre))
     names = tuple(candidates)
+    checks = {name: partial(_rigid_tried_beside, short_runs_first, matrix, observed,
+                            centre=centre, **options)
+              for name, options in rigid_forms.items()}
     # A lender with no evidence (a window without gaps, or too few for a stand-in) would
     # leave every gap to the default candidate: the window then validates itself.
     fitting = [v for v in borrowed if v is not None and v.names == names and v.by_class]
@@ -595,8 +603,19 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
                               if skip_unweighted else (),
                               validators={"trnn": lambda a, o: complete_lowrank(a, o, **loose)}
                               if skip_unweighted else None,
-                              once=() if skip_unweighted else ("trnn",), centre=centre)
+                              once=() if skip_unweighted else ("trnn",), centre=centre,
+                              local_checks=checks or None)
     return completed, report.validation
+
+
+def _rigid_tried_beside(short_runs_first, matrix: np.ndarray, observed: np.ndarray,
+                        spans: np.ndarray, **options) -> np.ndarray:
+    """:func:`~mocapfill.solvers.gapwise.rigid_local_errors` of the gaps ``spans`` on the
+    clip as the rigid candidates see it (its short runs filled first)."""
+    from .gapwise import rigid_local_errors
+
+    held, _, first = short_runs_first.prepared(matrix, observed)
+    return rigid_local_errors(matrix if first is None else first, held, spans, **options)
 
 
 complete.forwards_to = complete_lowrank     # its **trnn_options (see solvers.option_names)

@@ -1019,3 +1019,77 @@ def test_rigid_fill_in_batches_of_few_frames_fills_alike(monkeypatch):
                                                   weighted=True), whole, rtol=0, atol=1e-9)
     assert not np.array_equal(whole[~observed], gapwise.linear_fill(matrix,
                                                                     observed)[~observed])
+
+
+def _two_bodies(n: int = 600, seed: int = 3):
+    """(rows × n) six markers: 0–3 on one turning, moving rigid body (head-like), 4 and 5
+    on a second body that turns against it (a neck), all with 0.002 of noise."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 100.0
+
+    def turning(angle):
+        c, s = np.cos(angle), np.sin(angle)
+        return np.array([[c, -s, 0 * c], [s, c, 0 * c], [0 * c, 0 * c, 1 + 0 * c]])
+
+    centre = np.stack([np.sin(0.7 * t), 0.5 * np.cos(0.4 * t), 0.2 * t])
+    head, neck = turning(0.6 * np.sin(1.3 * t)), turning(0.5 * np.sin(6.0 * t + 1.0))
+    points = [(head, p) for p in ([0.3, 0.0, 0.1], [0.0, 0.25, 0.0], [-0.2, -0.1, 0.15],
+                                  [0.1, 0.1, -0.3])]
+    points += [(neck, p) for p in ([0.0, -0.2, -0.5], [0.15, 0.2, -0.6])]
+    markers = [np.einsum("abn,b->an", R, np.array(p)) + centre for R, p in points]
+    return np.vstack(markers) + 0.002 * rng.normal(size=(18, n))
+
+
+def test_the_rigid_fill_tried_beside_a_gap_errs_as_on_the_gap():
+    # Marker 0's gap [300, 360): with its body's markers 1-3 seen, the rigid fill tried
+    # beside the gap errs at the noise's level, as on the gap; with markers 1 and 2
+    # occluded with it, the fill moves it with marker 3 and the neck's markers, and errs
+    # far more, beside the gap as on it.
+    from mocapfill.solvers.gapwise import rigid_fill, rigid_local_errors
+
+    truth = _two_bodies()
+    gap = np.array([[0, 300, 360]])
+    errors = {}
+    for name, gaps in (("seen", [(0, 300, 360)]),
+                       ("occluded", [(0, 300, 360), (1, 295, 365), (2, 298, 362)])):
+        observed = _mask(6, 600, gaps)
+        matrix = np.where(observed, truth, 0.0)
+        local = rigid_local_errors(matrix, observed, gap)[0]
+        fill = rigid_fill(matrix, observed)[0:3, 300:360]
+        errors[name] = local, np.sqrt(((fill - truth[0:3, 300:360]) ** 2).mean())
+    (seen_local, seen_gap), (occluded_local, occluded_gap) = errors["seen"], \
+        errors["occluded"]
+    assert seen_local < 0.01 and seen_gap < 0.01
+    assert occluded_local > 5 * seen_local and occluded_gap > 5 * seen_gap
+    assert 0.3 < occluded_local / occluded_gap < 3
+    # No window beside the gap where the marker and its donors are all seen: NaN.
+    observed = _mask(6, 600, [(0, 300, 360), (1, 235, 299), (1, 361, 425)])
+    assert np.isnan(rigid_local_errors(np.where(observed, truth, 0.0), observed, gap)[0])
+
+
+def test_local_checks_scale_a_candidates_weight_by_its_typical_over_its_local_error():
+    # Two candidates, the second checked; its stand-in errors have median RMS 1 in the
+    # long gaps' class. Tried beside the gaps it errs 4 (weight halved: the factor
+    # stops at 1/2), 1.5 (2/3), 1 (kept), NaN (not tried: kept), 0.25 (doubled).
+    from mocapfill.solvers.gapwise import (
+        LOCAL_CLIP,
+        _locally_checked,
+        evidence,
+        length_class,
+    )
+
+    observed = _mask(2, 400, [(0, 10, 30), (0, 60, 80), (0, 110, 130), (0, 160, 180),
+                              (0, 210, 230), (1, 300, 302)])
+    groups = row_groups(observed)
+    gapset = GapSet(groups, interior_gaps(observed, groups))
+    cls = length_class(20)
+    errors = {cls: [evidence(np.array([[2.0 * s, s]] * 4)) for s in (0.5, 1.0, 3.0)]}
+    shared = np.array([0.5, 0.5])
+    weights = [shared] * len(gapset.gaps)
+    tried = {1: np.array([4.0, 1.5, 1.0, np.nan, 0.25])}
+    out = _locally_checked(weights, gapset, errors, tried)
+    factors = [1 / LOCAL_CLIP, 1 / 1.5, 1.0, 1.0, LOCAL_CLIP]
+    for w, f in zip(out[:5], factors):
+        np.testing.assert_allclose(w, np.array([0.5, 0.5 * f]) / (0.5 + 0.5 * f))
+    assert out[5] is shared                                 # a short gap: untouched
+    assert weights[0] is shared and shared.tolist() == [0.5, 0.5]
