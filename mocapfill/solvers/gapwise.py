@@ -1368,11 +1368,11 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     # The rigid-partner check's distance bands need no candidate: made beside them.
     centre = None if centre is None else np.asarray(centre, dtype=np.float64)
     # So are the local checks' errors beside the long gaps.
+    checks = {names.index(name): check for name, check in (local_checks or {}).items()
+              if name in names}
     context = {"bands": partial(_partner_bands, matrix, observed, gapset, centre)}
-    if local_checks:
-        context["checks"] = partial(_local_errors, {names.index(name): check for name, check
-                                                    in local_checks.items() if name in names},
-                                    gapset)
+    if checks:
+        context["checks"] = partial(_local_errors, checks, gapset)
     made: dict = {}
     if hidden:
         keys = [(kind, i) for i in order for kind in ("trial", "fill")
@@ -1406,7 +1406,7 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     for i, fill in zip(later, late):
         fills[i] = fill
     bands = made["bands"]
-    if local_checks:        # (it scales weights, and leaves those at zero there: ``used``)
+    if checks:              # (it scales weights, and leaves those at zero there: ``used``)
         gap_weights = _locally_checked(gap_weights, gapset, errors, made["checks"])
     ran = [i for i in range(len(names)) if fills[i] is not None]
 
