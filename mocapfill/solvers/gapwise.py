@@ -346,9 +346,9 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
                      dtype=np.int64).reshape(-1, 3)
     if not spans.size:
         return out
-    P, shift, seen, chosen, spread = _rigid_donors(matrix, observed, spans, donors, centre)
-    for part, fill in _rigid_motions(P, spans, chosen, spread if weighted else None):
-        gap, frames = _gap_frames_of(spans[part])
+    P, shift, _, chosen, spread = _rigid_donors(matrix, observed, spans, donors, centre)
+    for part, gap, frames, fill in _rigid_motions(P, spans, chosen,
+                                                  spread if weighted else None):
         rows = 3 * spans[part][gap, 0][:, None] + np.arange(3)
         out[rows, frames[:, None]] = fill - shift[rows]
     return out
@@ -357,41 +357,25 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
 def _rigid_donors(matrix: np.ndarray, observed: np.ndarray, spans: np.ndarray, donors: int,
                   centre: np.ndarray | None):
     """What :func:`rigid_fill` moves the gaps ``spans`` (gaps, 3) with: the true positions
-    P (n, markers, 3; NaN where unseen), the rows' ``shift`` (centre), the markers' mask
-    (n, markers), and each gap's donors (gaps, donors; −1 past the last) with their
-    distance spreads to the gapped marker (gaps, donors)."""
+    P (n, markers, 3; NaN where unseen), the rows' ``shift`` (centre), the clip's
+    :func:`_seen_before`, and each gap's donors (gaps, donors; −1 past the last) with
+    their distance spreads to the gapped marker (gaps, donors)."""
     shift = np.zeros(len(matrix)) if centre is None else np.asarray(centre, dtype=np.float64)
     P = _xyz(np.where(observed, matrix + shift[:, None], np.nan))
-    seen = observed[0::3].T                                          # (n, markers)
     j, a, b = spans.T
-    spread_all = distance_spread(P, seen, rows=np.unique(j).tolist())
-    # Donors seen on all of [a − 1, b]: counted from the unseen frames before each frame.
-    unseen = _unseen_before(seen)
-    spread = np.where(unseen[b + 1] == unseen[a - 1], spread_all[j], np.inf)  # (gaps, k)
+    spread_all = distance_spread(P, observed[0::3].T, rows=np.unique(j).tolist())
+    before = _seen_before(observed)
+    usable = (before[:, b + 1] - before[:, a - 1] == b - a + 2).T   # seen on [a − 1, b]
+    spread = np.where(usable, spread_all[j], np.inf)                 # (gaps, markers)
     chosen = _distinct_donors_of_gaps(                               # (gaps, donors)
         spread, donors, lambda g, columns: P[a[g, None] - 1, columns])
-    return P, shift, seen, chosen, np.take_along_axis(spread, np.maximum(chosen, 0), axis=1)
-
-
-def _unseen_before(seen: np.ndarray) -> np.ndarray:
-    """(n + 1, markers): how many frames before each frame miss each marker."""
-    unseen = np.zeros((len(seen) + 1, seen.shape[1]), dtype=np.int64)
-    np.cumsum(~seen, axis=0, out=unseen[1:])
-    return unseen
-
-
-def _gap_frames_of(spans: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each frame of the gaps ``spans`` (gaps, 3), in gap order: its gap's index, its frame."""
-    lengths = spans[:, 2] - spans[:, 1]
-    gap = np.repeat(np.arange(len(spans)), lengths)
-    step = np.arange(gap.size) - np.repeat(np.cumsum(lengths) - lengths, lengths)
-    return gap, spans[gap, 1] + step
+    return P, shift, before, chosen, np.take_along_axis(spread, np.maximum(chosen, 0), axis=1)
 
 
 def _rigid_motions(P: np.ndarray, spans: np.ndarray, chosen: np.ndarray,
                    spread: np.ndarray | None):
-    """(gap indices, fill (frames, 3) in true positions) of :func:`rigid_fill` for the gaps
-    with three donors or more, batch by batch: the gaps with the same number of donors in
+    """(indices of the gaps, then :func:`_rigid_batch` of them) of :func:`rigid_fill` for
+    the gaps with three donors or more, batch by batch: the gaps with the same number of donors in
     batches of at most _RIGID_BATCH gap frames, each one stack of 3 × 3 Kabsch problems,
     two per frame."""
     count = (chosen >= 0).sum(axis=1)
@@ -404,8 +388,8 @@ def _rigid_motions(P: np.ndarray, spans: np.ndarray, chosen: np.ndarray,
         cuts = np.searchsorted(ends, np.arange(_RIGID_BATCH, ends[-1], _RIGID_BATCH))
         for part in np.split(which, np.unique(cuts)):
             if part.size:
-                yield part, _rigid_batch(P, spans[part], chosen[part, :size],
-                                         None if spread is None else spread[part, :size])
+                yield (part, *_rigid_batch(P, spans[part], chosen[part, :size],
+                                           None if spread is None else spread[part, :size]))
 
 
 # Gap frames per batch of :func:`rigid_fill` (its arrays: about 0.5 KB per frame).
@@ -413,12 +397,13 @@ _RIGID_BATCH = 1 << 15
 
 
 def _rigid_batch(P: np.ndarray, spans: np.ndarray, chosen: np.ndarray,
-                 spread: np.ndarray | None) -> np.ndarray:
-    """(frames, 3) :func:`rigid_fill` of the gaps ``spans`` (gaps, 3) in true positions,
-    frame by frame in gap order, each gap moved with its donors ``chosen`` (gaps, d),
-    weighted by 1 / spread² where ``spread`` (gaps, d) is given."""
+                 spread: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`rigid_fill` of the gaps ``spans`` (gaps, 3), each moved with its donors
+    ``chosen`` (gaps, d), weighted by 1 / spread² where ``spread`` (gaps, d) is given:
+    every gap frame's gap (an index into ``spans``) and frame, in gap order
+    (:func:`~mocapfill.gaps.gap_frames`), and its fill (frames, 3) in true positions."""
     j, a, b = spans.T
-    gap, frames = _gap_frames_of(spans)
+    gap, frames = gap_frames(a, b)
     s = ((frames - a[gap] + 1) / (b - a + 1)[gap])[:, None]
     if spread is None:
         weights = np.full(chosen.shape, 1.0 / chosen.shape[1])
@@ -433,7 +418,7 @@ def _rigid_batch(P: np.ndarray, spans: np.ndarray, chosen: np.ndarray,
     for ref, weight in ((a - 1, 1 - s), (b, s)):
         R, t = _kabsch(P[ref[gap][:, None], donors], moved, w)
         fill += weight * (np.einsum("lab,lb->la", R, P[ref[gap], j[gap]]) + t)
-    return fill
+    return gap, frames, fill
 
 
 # Windows beside a gap on which :func:`rigid_local_errors` tries the gap's rigid body: at
@@ -467,26 +452,24 @@ def rigid_local_errors(matrix: np.ndarray, observed: np.ndarray, spans: np.ndarr
     marker were its rigid ones, the loose ones left carry it badly beside the gap too.
     """
     n = matrix.shape[1]
-    P, _, seen, chosen, spread = _rigid_donors(matrix, observed, spans, donors, centre)
+    P, _, before, chosen, spread = _rigid_donors(matrix, observed, spans, donors, centre)
     j, a, b = spans.T
     length = b - a
     starts = [a - (length + 1) * (i + 1) for i in range(LOCAL_WINDOWS)] + \
         [b + 1 + (length + 1) * i for i in range(LOCAL_WINDOWS)]
-    unseen = _unseen_before(seen)
     sums, counts = np.zeros(len(spans)), np.zeros(len(spans))
-    columns = np.where(chosen >= 0, chosen, j[:, None])             # (the marker: seen)
+    # The marker and its donors (−1: the marker again), all seen on [start − 1, start + L].
+    markers = np.column_stack([j, np.where(chosen >= 0, chosen, j[:, None])])
     for start in starts:
         ok = (start >= 1) & (start + length + 1 <= n) & ((chosen >= 0).sum(axis=1) >= 3)
         lo, hi = np.clip(start - 1, 0, n), np.clip(start + length + 1, 0, n)
-        clear = (unseen[hi[:, None], columns] == unseen[lo[:, None], columns]).all(axis=1)
-        ok &= clear & (unseen[hi, j] == unseen[lo, j])
-        which = np.flatnonzero(ok)
+        seen = before[markers, hi[:, None]] - before[markers, lo[:, None]]
+        which = np.flatnonzero(ok & (seen == (hi - lo)[:, None]).all(axis=1))
         if not which.size:
             continue
         windows = np.stack([j[which], start[which], start[which] + length[which]], axis=1)
-        for part, fill in _rigid_motions(P, windows, chosen[which],
-                                         spread[which] if weighted else None):
-            gap, frames = _gap_frames_of(windows[part])
+        for part, gap, frames, fill in _rigid_motions(P, windows, chosen[which],
+                                                      spread[which] if weighted else None):
             error = ((fill - P[frames, windows[part][gap, 0]]) ** 2).sum(axis=1)
             np.add.at(sums, which[part][gap], error)
             np.add.at(counts, which[part][gap], 3.0)
