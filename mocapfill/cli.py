@@ -146,15 +146,20 @@ _zero_option = click.option(
          "for Qualisys C3D files, which store gaps that way, off for other files.")
 
 
-def _read(path: Path, zero_is_missing: str = "auto"):
+def _read(path: Path, zero_is_missing: str = "auto", notes: list[str] | None = None):
+    """Read IN; a note that ``--zero-is-missing on`` cannot apply to its format is printed
+    now, or added to ``notes`` (a command that prints its notes once it has succeeded)."""
     from . import formats
 
     if path.suffix.lower() in formats.ZERO_FORMATS:
         return formats.read(path, zero_is_missing=zero_is_missing)
     if zero_is_missing == "on":     # asked for explicitly: say it cannot apply here
-        click.echo(f"mocapfill: note: {path}: --zero-is-missing on applies to C3D, TRC and "
-                   "CSV files only; samples at exactly (0, 0, 0) in this file are read as "
-                   "data", err=True)
+        note = ("--zero-is-missing on applies to C3D, TRC and CSV files only; samples at "
+                "exactly (0, 0, 0) in this file are read as data")
+        if notes is None:
+            click.echo(f"mocapfill: note: {path}: {note}", err=True)
+        else:
+            notes.append(note)
     return formats.read(path)
 
 
@@ -321,7 +326,8 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
     formats.check_output(out_path, in_path)
     if gaps_report is not None:
         _check_gaps_report(gaps_report, in_path, out_path)
-    motion = _read(in_path, zero_is_missing)
+    notes: list[str] = []
+    motion = _read(in_path, zero_is_missing, notes)
     # A BVH/AMC written back to its own format is completed in joint-channel space.
     space = "channels" if formats.same_skeleton_format(in_path, out_path) else "positions"
     from .pipeline import reporting_windows
@@ -332,7 +338,7 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
 
     # What the reader worked around (a cut last row: the user should know), shown with
     # the writer's notes once OUT is written: a repair that fails shows its error alone.
-    _write_noting(result.motion, out_path, read=(in_path, reader_notes(motion)))
+    _write_noting(result.motion, out_path, read=(in_path, (*notes, *reader_notes(motion))))
     if gaps_report is not None:
         from .report import write_gaps_report
 

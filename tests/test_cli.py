@@ -1070,11 +1070,19 @@ def test_zero_is_missing_on_for_a_format_that_cannot_hold_it_is_noted(tmp_path):
     src.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Xposition "
                    "Yposition Zposition\n  End Site\n  {\n    OFFSET 0 1 0\n  }\n}\n"
                    "MOTION\nFrames: 2\nFrame Time: 0.01\n0 0 0\n1 1 1\n")
+    note = (f"mocapfill: note: {src}: --zero-is-missing on applies to C3D, TRC and CSV "
+            "files only; samples at exactly (0, 0, 0) in this file are read as data")
     result = run("info", src, "--zero-is-missing", "on")
     assert result.exit_code == 0, result.output
-    assert (f"mocapfill: note: {src}: --zero-is-missing on applies to C3D, TRC and CSV "
-            "files only; samples at exactly (0, 0, 0) in this file are read as data"
-            in result.stderr)
+    assert note in result.stderr
+    # repair shows it with the reader's notes once OUT is written; a repair that fails
+    # after reading (--max-gap in seconds needs the file's rate) prints its error alone.
+    done = run("repair", src, tmp_path / "o.bvh", "--zero-is-missing", "on")
+    assert done.exit_code == 0, done.output
+    assert done.stderr.splitlines()[0] == note and "->" in done.stderr.splitlines()[-1]
+    failed = run("repair", src, tmp_path / "p.bvh", "--zero-is-missing", "on",
+                 "--max-gap", "-1s")
+    assert failed.exit_code == 2 and failed.stderr.count("\n") == 1, failed.stderr
 
 
 def test_reader_notes_follow_the_written_output_and_a_failing_repair_prints_one_line(
