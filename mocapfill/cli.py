@@ -551,7 +551,8 @@ def simulate(in_path: Path, out_path: Path, mr, ml, n_markers, seed, zero_is_mis
         raise ParameterError("--markers applies to --ml (continuous missing), not --mr")
     n_markers = 10 if n_markers is None else n_markers
     formats.check_output(out_path, in_path)
-    motion = _read(in_path, zero_is_missing)
+    notes: list[str] = []       # shown once OUT is written (a failure prints its error alone)
+    motion = _read(in_path, zero_is_missing, notes)
     # A skeleton clip written back to its own format loses joint channels (nan cells);
     # otherwise the protocols remove marker (or joint position) samples.
     channels = formats.same_skeleton_format(in_path, out_path)
@@ -563,9 +564,9 @@ def simulate(in_path: Path, out_path: Path, mr, ml, n_markers, seed, zero_is_mis
                     else simulation_candidates)(motion).size
         if n_markers > hittable:
             kind = "joints with channels" if channels else "markers with data"
-            click.echo(f"mocapfill: note: {in_path}: --markers {n_markers} but the clip has "
-                       f"{hittable} {kind}; --ml hit all {hittable}", err=True)
-    _write_noting(gapped, out_path)
+            notes.append(f"--markers {n_markers} but the clip has {hittable} {kind}; --ml "
+                         f"hit all {hittable}")
+    _write_noting(gapped, out_path, read=(in_path, tuple(notes)))
     removed = int((motion.observed & ~gapped.observed).sum())
     # In channel space the protocols remove joints' channels, and every joint those
     # channels move loses its position: the count of position samples (what info and
