@@ -437,6 +437,10 @@ LOCAL_WINDOWS = 2
 # 58.58; (t/e)² within [1/4, 4]: 6, 3.968 (worse on 9 of 18 clips); cutting only (t/e
 # capped at 1), squared: 7, 4.020. The walking set stayed at 1.9827 mm.
 LOCAL_CLIP = 2.0
+# Errors below this (RMS per sample, in the blend's unit-RMS scale: 1e−6 of the data's
+# spread) are rounding: added to both errors the check compares, it leaves their ratio
+# near 1 where both are that small (a rigid body of exact data), and no lower.
+LOCAL_RESOLUTION = 1e-6
 
 
 def rigid_local_errors(matrix: np.ndarray, observed: np.ndarray, spans: np.ndarray, *,
@@ -1153,10 +1157,10 @@ def _locally_checked(gap_weights: list[np.ndarray], gapset: GapSet,
     t = np.stack([typical[c] for c in classes.tolist()])            # (long gaps, k)
     factor = np.ones_like(t)
     for column, e in tried.items():
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = t[:, column] / e
-        factor[:, column] = np.where(np.isfinite(ratio) & (e > 0),
-                                     np.clip(ratio, 1 / LOCAL_CLIP, LOCAL_CLIP), 1.0)
+        # (errors at rounding's level, on exact data, compare as equal)
+        ratio = (t[:, column] + LOCAL_RESOLUTION) / (e + LOCAL_RESOLUTION)
+        factor[:, column] = np.where(np.isfinite(e), np.clip(ratio, 1 / LOCAL_CLIP,
+                                                             LOCAL_CLIP), 1.0)
     out = list(gap_weights)
     for position in np.flatnonzero((factor != 1).any(axis=1)).tolist():
         w = gap_weights[long[position]] * factor[position]

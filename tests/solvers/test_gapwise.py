@@ -1090,6 +1090,12 @@ def test_local_checks_scale_a_candidates_weight_by_its_typical_over_its_local_er
     out = _locally_checked(weights, gapset, errors, tried)
     factors = [1 / LOCAL_CLIP, 1 / 1.5, 1.0, 1.0, LOCAL_CLIP]
     for w, f in zip(out[:5], factors):
-        np.testing.assert_allclose(w, np.array([0.5, 0.5 * f]) / (0.5 + 0.5 * f))
+        np.testing.assert_allclose(w, np.array([0.5, 0.5 * f]) / (0.5 + 0.5 * f), rtol=1e-5)
     assert out[5] is shared                                 # a short gap: untouched
     assert weights[0] is shared and shared.tolist() == [0.5, 0.5]
+    # Exact data: the candidate's errors on the stand-ins and beside the gaps are rounding
+    # (0 and 1e-15 here): its weight is kept, not halved.
+    exact = {cls: [evidence(np.array([[1.0, 0.0]] * 4))]}
+    out = _locally_checked(weights, gapset, exact, {1: np.full(5, 1e-15)})
+    for w in out[:5]:
+        np.testing.assert_allclose(w, shared)
