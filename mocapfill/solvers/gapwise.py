@@ -1025,8 +1025,10 @@ def _rigid_partner_violations(matrix: np.ndarray, centre: np.ndarray | None,
     where = (matrix[rows[..., None], (a[:, None] + np.arange(length))[:, None, None]]
              + shift[rows][..., None])                               # (gaps, p, 3, length)
     dist = np.sqrt(((segments[:, :, None] - where[:, None]) ** 2).sum(axis=3))
-    spread, lo, hi = (np.take_along_axis(table, column, axis=1)[:, None, :, None]
-                      for table in (spread, lo, hi))                 # (gaps, 1, p, 1)
+    # (gaps, 1, p, 1); 0 in the columns of partners not taken (their band may be ∞, and
+    # ∞ − ∞ would warn: those columns are left out below)
+    spread, lo, hi = (np.where(taken, np.take_along_axis(table, column, axis=1),
+                               0.0)[:, None, :, None] for table in (spread, lo, hi))
     margin = PARTNER_MARGIN * spread
     excess = np.maximum(np.maximum(dist - (hi + margin), 0.0), (lo - margin) - dist)
     rms = np.sqrt((excess ** 2).mean(axis=3))                        # (gaps, k, p)

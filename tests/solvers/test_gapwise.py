@@ -1099,3 +1099,34 @@ def test_local_checks_scale_a_candidates_weight_by_its_typical_over_its_local_er
     out = _locally_checked(weights, gapset, exact, {1: np.full(5, 1e-15)})
     for w in out[:5]:
         np.testing.assert_allclose(w, shared)
+
+
+def test_the_partner_check_computes_nothing_invalid_for_partners_it_lacks():
+    # Marker 1's gap has one partner (marker 2); marker 0 is seen only inside that gap, so
+    # its band to marker 1 is empty (∞ spread, an inverted extent). The check, made for
+    # three partners at once, filled the two it lacks from marker 0's band, and ∞ − ∞
+    # gave a RuntimeWarning on stderr (found by the property test in a fresh clone).
+    from mocapfill.solvers.gapwise import (
+        GapSet,
+        _partner_bands,
+        _rigid_partner_violations,
+        _seen_before,
+        interior_gaps,
+    )
+
+    truth = _rigid_clip()[:9]
+    seen = np.ones((3, 400), dtype=bool)
+    seen[1, 50:70] = False
+    seen[0, :52] = seen[0, 68:] = False
+    observed = np.repeat(seen, 3, axis=0)
+    matrix = np.where(observed, truth, 0.0)
+    groups = row_groups(observed)
+    gapset = GapSet(groups, interior_gaps(observed, groups))
+    spans = gapset.spans[gapset.spans[:, 0] == 1]
+    fills = np.stack([truth[3:6, 50:70], truth[3:6, 50:70] + 1.0])[None]   # (1, 2, 3, 20)
+    bands = _partner_bands(matrix, observed, gapset, None)
+    assert not np.isfinite(bands[1][0][0])          # marker 0: no band to marker 1
+    with np.errstate(all="raise"):
+        off = _rigid_partner_violations(matrix, None, _seen_before(observed), groups,
+                                        spans, fills, bands)
+    assert off.tolist() == [[False, True]]
