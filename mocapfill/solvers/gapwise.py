@@ -1133,21 +1133,32 @@ def _local_errors(checks: dict[int, Callable[[np.ndarray], np.ndarray]], gapset:
 
 
 def _locally_checked(gap_weights: list[np.ndarray], gapset: GapSet,
-                     errors: dict[int, list[Evidence]], tried: dict[int, np.ndarray]
-                     ) -> list[np.ndarray]:
-    """The gaps' weights with those of some candidates scaled gap by gap by how their fill
-    fared when tried beside the gap (gaps of MIN_MODEL_GAP frames or more).
+                     errors: dict[int, list[Evidence]], tried: dict[int, np.ndarray],
+                     own: dict[int, list[Evidence]] | None = None) -> list[np.ndarray]:
+    """The gaps' weights scaled gap by gap by how each candidate fared near the gap (gaps of
+    MIN_MODEL_GAP frames or more), then normalised again.
 
-    ``tried``: candidate index → (long gaps,) the RMS error per sample of its fill of
-    each long gap tried beside it (NaN: not tried; see :func:`rigid_local_errors`). With t
-    the candidate's typical error on the stand-ins of the gap's length class (the median
-    over them of its RMS error) and e that error beside the gap, its weight on the gap is
-    multiplied by t / e, within [1 / LOCAL_CLIP, LOCAL_CLIP], and the weights are
-    normalised again.
+    With t a candidate's typical error on the stand-ins of the gap's length class (the
+    median over them of its RMS error per sample) and e its error near the gap, its weight
+    on the gap is multiplied by t / e, within [1 / LOCAL_CLIP, LOCAL_CLIP]. Two sources
+    of e, whose factors multiply where both exist:
+
+    ``tried``: candidate index → (long gaps,) the RMS error of its fill of each long gap
+    tried beside it on the real mask (NaN: not tried; see :func:`rigid_local_errors`).
+    ``own``: real gap index → the evidence of the stand-ins hidden for that gap (same
+    marker, same length, sought near it first: :func:`pseudo_gaps`); e is every
+    candidate's RMS error over them. A long gap has at most two, too few to weigh the
+    candidates alone (:data:`MIN_OWN_STANDINS`), but they tell which candidates the gap's
+    marker suits better or worse than the clip's markers as a whole (a fast limb where
+    the class's weights come mostly from the trunk). It is the marker that counts, not
+    the place: on the 1,557 gaps of ``scripts/replay_gaps.py`` the mean error went
+    3.888 → 3.862 mm with all of them, 3.864 with those within 4 gap lengths, and
+    3.889 with those within one (thirty-fourth session, docs/results.md).
     """
     lengths = gapset.lengths
     long = np.flatnonzero(lengths >= MIN_MODEL_GAP)
-    if not long.size or not tried or not errors:
+    near = [position for position, index in enumerate(long.tolist()) if (own or {}).get(index)]
+    if not long.size or not (tried or near) or not errors:
         return gap_weights
     classes = length_classes(lengths[long])
     typical = {}
@@ -1159,16 +1170,26 @@ def _locally_checked(gap_weights: list[np.ndarray], gapset: GapSet,
     t = np.stack([typical[c] for c in classes.tolist()])            # (long gaps, k)
     factor = np.ones_like(t)
     for column, e in tried.items():
-        # (errors at rounding's level, on exact data, compare as equal)
-        ratio = (t[:, column] + LOCAL_RESOLUTION) / (e + LOCAL_RESOLUTION)
-        factor[:, column] = np.where(np.isfinite(e), np.clip(ratio, 1 / LOCAL_CLIP,
-                                                             LOCAL_CLIP), 1.0)
+        factor[:, column] = _local_factor(t[:, column], e)
+    if near:
+        e = np.empty((len(near), t.shape[1]))
+        for row, position in enumerate(near):
+            grams, sizes = _stack(own[int(long[position])])
+            e[row] = np.sqrt(np.diagonal(grams, axis1=1, axis2=2).sum(axis=0) / sizes.sum())
+        factor[near] *= _local_factor(t[near], e)
     out = list(gap_weights)
     for position in np.flatnonzero((factor != 1).any(axis=1)).tolist():
         w = gap_weights[long[position]] * factor[position]
         if w.sum() > 0:
             out[long[position]] = w / w.sum()
     return out
+
+
+def _local_factor(typical: np.ndarray, error: np.ndarray) -> np.ndarray:
+    """typical / error within [1 / LOCAL_CLIP, LOCAL_CLIP]; 1 where ``error`` is NaN.
+    (Errors at rounding's level, on exact data, compare as equal.)"""
+    ratio = (typical + LOCAL_RESOLUTION) / (error + LOCAL_RESOLUTION)
+    return np.where(np.isfinite(error), np.clip(ratio, 1 / LOCAL_CLIP, LOCAL_CLIP), 1.0)
 
 
 def _stand_in_errors(fill_fn: Candidate, blinded: np.ndarray, train: np.ndarray,
@@ -1395,8 +1416,8 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     for i, fill in zip(later, late):
         fills[i] = fill
     bands = made["bands"]
-    if checks:              # (it scales weights, and leaves those at zero there: ``used``)
-        gap_weights = _locally_checked(gap_weights, gapset, errors, made["checks"])
+    # (It scales weights, and leaves those at zero there: ``used``.)
+    gap_weights = _locally_checked(gap_weights, gapset, errors, made.get("checks", {}), own)
     ran = [i for i in range(len(names)) if fills[i] is not None]
 
     # The default's fill takes the end gaps; where it was not run (``optional``), that of

@@ -1101,6 +1101,32 @@ def test_local_checks_scale_a_candidates_weight_by_its_typical_over_its_local_er
         np.testing.assert_allclose(w, shared)
 
 
+def test_a_long_gaps_own_stand_ins_scale_every_candidates_weight_on_it():
+    # Three candidates, the first also checked beside the gaps. The class's stand-ins give
+    # each a median RMS of 1. Gap 0's own stand-in: errors 4, 1, 0.5 -> factors 1/2, 1, 2,
+    # times the first's factor from ``tried`` (2 there: 1 in all). Gap 1 has no stand-in of
+    # its own: only ``tried`` counts. Gap 2 has two, pooled: RMS sqrt((1 + 9) / 2) = √5
+    # for the first candidate (factor 1/2, the clip), 1 and 1 for the others.
+    from mocapfill.solvers.gapwise import _locally_checked, evidence, length_class
+
+    observed = _mask(1, 200, [(0, 10, 30), (0, 60, 80), (0, 110, 130)])
+    groups = row_groups(observed)
+    gapset = GapSet(groups, interior_gaps(observed, groups))
+    errors = {length_class(20): [evidence(np.array([[s, s, s]] * 6)) for s in (0.5, 1, 3)]}
+    own = {0: [evidence(np.array([[4.0, 1.0, 0.5]] * 6))],
+           2: [evidence(np.array([[1.0, 1.0, 1.0]] * 6)),
+               evidence(np.array([[3.0, 1.0, 1.0]] * 6))]}
+    shared = np.full(3, 1 / 3)
+    tried = {0: np.array([0.5, 0.5, np.nan])}
+    out = _locally_checked([shared] * 3, gapset, errors, tried, own)
+    for w, factors in zip(out, ([2 / 2, 1, 2], [2, 1, 1], [1 / 2, 1, 1])):
+        np.testing.assert_allclose(w, np.array(factors) / sum(factors), rtol=1e-5)
+    # Without ``tried`` (no rigid candidate), the own stand-ins still count.
+    out = _locally_checked([shared] * 3, gapset, errors, {}, own)
+    np.testing.assert_allclose(out[0], np.array([0.5, 1, 2]) / 3.5, rtol=1e-5)
+    assert out[1] is shared
+
+
 def test_the_partner_check_computes_nothing_invalid_for_partners_it_lacks():
     # Marker 1's gap has one partner (marker 2); marker 0 is seen only inside that gap, so
     # its band to marker 1 is empty (∞ spread, an inverted extent). The check, made for
