@@ -38,9 +38,19 @@ def _pick_markers(motion: Motion, patterns: tuple[str, ...]) -> list[int]:
     return sorted(gapped[order][:MAX_DEFAULT_MARKERS].tolist())
 
 
+def time_axis(motion: Motion) -> tuple[np.ndarray, str]:
+    """Each frame's place on the x axis, and the axis label: seconds from frame 1 at the
+    clip's rate, or the frame numbers where the clip has no rate (0 Hz: a C3D without
+    ``POINT:RATE``, an AMC, a TRC or CSV stating none), which no time can be given to."""
+    if motion.rate > 0:
+        return (motion.first_frame - 1 + np.arange(motion.n_frames)) / motion.rate, "time (s)"
+    return motion.first_frame + np.arange(motion.n_frames), "frame (no frame rate known)"
+
+
 def plot(original: Motion, repaired: Motion | None, path: Path,
          markers: tuple[str, ...] = ()) -> list[str]:
-    """Draw x/y/z over time for some markers and save to PNG, SVG or HTML (by suffix).
+    """Draw x/y/z over time for some markers and save to PNG, SVG or HTML (by suffix);
+    over frame numbers for a clip without a frame rate (:func:`time_axis`).
 
     Parameters
     ----------
@@ -77,7 +87,7 @@ def plot(original: Motion, repaired: Motion | None, path: Path,
     matplotlib.use("Agg")
     from matplotlib import pyplot as plt
 
-    time = (original.first_frame - 1 + np.arange(original.n_frames)) / original.rate
+    time, time_label = time_axis(original)
     fig, axes = plt.subplots(len(chosen), 3, figsize=(13, 2.1 * len(chosen) + 0.8),
                              sharex=True, squeeze=False)
     for row, j in enumerate(chosen):
@@ -99,7 +109,7 @@ def plot(original: Motion, repaired: Motion | None, path: Path,
             ax.set_ylabel(f"{original.labels[j]} {axis_name} ({original.units})", fontsize=8)
             ax.tick_params(labelsize=7)
     for ax in axes[-1]:
-        ax.set_xlabel("time (s)", fontsize=8)
+        ax.set_xlabel(time_label, fontsize=8)
     title = str(original.path.name if original.path else "clip")
     fig.suptitle(f"{title}: measured (solid), gaps (shaded)"
                  + (", filled (dashed)" if repaired is not None else ""), fontsize=10)
