@@ -253,7 +253,8 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
                    "psvt) / 60 (gaussian).")
 @click.option("--max-gap", default=None, metavar="FRAMES|SECONDSs",
               help="Leave gaps longer than this missing (and report them): frames (40) or "
-                   "seconds (0.5s). Default: fill every length.")
+                   "seconds (0.5s, at the file's frame rate; refused for a file that states "
+                   "none, an AMC). Default: fill every length.")
 @click.option("--ends", type=click.Choice(["leave", "hold", "extrapolate"]), default="leave",
               show_default=True,
               help="Gaps touching the first or last frame: leave them missing, hold the "

@@ -1104,3 +1104,89 @@ def test_reader_notes_follow_the_written_output_and_a_failing_repair_prints_one_
     lines = done.stderr.splitlines()
     assert lines[0].startswith(f"mocapfill: note: {src}: ") and "cut short" in lines[0]
     assert lines[-1].startswith(f"{src} -> ") and len(lines) == 2
+
+
+# ----------------------------------------------------------------------- files stating no rate
+
+def _no_rate_file(folder: Path, kind: str) -> Path:
+    """A gapped clip (MK01 missing in frames 20-24 of 60) in a file that states no frame
+    rate: a plain CSV without a Time column, a headerless CSV, a TRC without DataRate or
+    Time values, an AMC (which has no rate field)."""
+    if kind == "amc":
+        from tests.formats.test_acclaim import frame, write_pair
+
+        frames = [frame(f, f"{f / 10:.2f} 0 0 0 0 0", None if 20 <= f < 25 else
+                        f"{10 + 20 * np.sin(f / 9):.4f}", f"{f / 3:.4f} 5") for f in range(60)]
+        return write_pair(folder, frames, stem="norate")
+    clip = with_gap(smooth_clip(60, 4), 1, 20, 25)
+    rows = []
+    for f in range(clip.n_frames):
+        cells = [format(v, ".4f") if clip.observed[f, j] else ""
+                 for j in range(clip.n_markers) for v in clip.positions[f, j]]
+        rows.append(cells)
+    if kind == "trc":
+        text = ("PathFileType\t4\t(X/Y/Z)\tnorate.trc\n"
+                "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\t"
+                "OrigDataStartFrame\tOrigNumFrames\n"
+                "\t\t60\t4\tmm\t\t1\t60\n"
+                "Frame#\tTime\t" + "".join(f"{name}\t\t\t" for name in clip.labels) + "\n\n"
+                + "".join(f"{f + 1}\t\t" + "\t".join(cells) + "\n"
+                          for f, cells in enumerate(rows)))
+        path = folder / "norate.trc"
+    else:
+        header = ("" if kind == "headerless" else
+                  ",".join(f"{name}_{axis}" for name in clip.labels for axis in "XYZ") + "\n")
+        text = header + "".join(",".join(cells) + "\n" for cells in rows)
+        path = folder / "norate.csv"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("kind", ["csv", "headerless", "trc", "amc"])
+def test_a_file_stating_no_rate_reads_as_0_hz_and_refuses_max_gap_in_seconds(tmp_path, kind):
+    # These files were read as 120 Hz without a word, so --max-gap 0.5s meant 60 frames of
+    # a rate the file never stated; the README says such a file fails.
+    folder = tmp_path / "in"
+    folder.mkdir()
+    path = _no_rate_file(folder, kind)
+    assert formats.read(path).rate == 0
+    assert "with no frame rate (0 Hz)" in run("info", path).stdout
+    out = tmp_path / f"alone{path.suffix}"
+    alone = run("repair", path, out, "--max-gap", "0.5s", "--method", "linear")
+    assert alone.exit_code == 2, alone.output
+    assert alone.stderr.splitlines() == [
+        f"mocapfill: error: {path}: the file states no frame rate, so --max-gap 0.5s has no "
+        "length in frames; give it in frames (40)"]
+    assert not out.exists()
+    # In a batch the file fails alone, and the batch exits 123 (some file failed).
+    report_path = tmp_path / "report.json"
+    many = run("repair", folder, "-o", tmp_path / "out", "-j", "1", "--max-gap", "0.5s",
+               "--method", "linear", "--report", report_path)
+    assert many.exit_code == 123, many.output
+    record, = json.loads(report_path.read_text())["files"]
+    assert record["status"] == "failed"
+    assert record["reason"].startswith("the file states no frame rate, so --max-gap 0.5s")
+    assert str(path) in many.stderr
+    # In frames it needs no rate.
+    framed = run("repair", path, out, "--max-gap", "40", "--method", "linear")
+    assert framed.exit_code == 0, framed.output
+    assert re.search(r": [12] gaps filled, 0 left", framed.stderr)     # AMC: arm and hand
+    assert formats.read(out).observed.all() and formats.read(out).rate == 0
+
+
+@pytest.mark.parametrize(("kind", "suffix"), [("csv", ".trc"), ("headerless", ".trc"),
+                                            ("trc", ".csv"), ("amc", ".trc"), ("amc", ".csv")])
+def test_converting_a_file_stating_no_rate_to_a_new_trc_or_csv_notes_120_hz(tmp_path, kind,
+                                                                            suffix):
+    path = _no_rate_file(tmp_path, kind)
+    out = tmp_path / f"out{suffix}"
+    result = run("convert", path, out)
+    assert result.exit_code == 0, result.output
+    assert (f"mocapfill: note: {out}: the clip's frame rate is not known (0 Hz): written "
+            "as 120 Hz") in result.stderr.splitlines()
+    assert formats.read(out).rate == 120
+    # A copy in the file's own format is a patch of it: it states no rate either.
+    same = tmp_path / f"same{path.suffix}"
+    result = run("convert", path, same)
+    assert result.exit_code == 0 and "note:" not in result.stderr, result.output
+    assert formats.read(same).rate == 0

@@ -39,7 +39,9 @@ units, labelled ``"in/0.45"`` for CMU (``"in"`` when ``length`` is 1); ``units="
 ``"cm"``, ``"m"`` or ``"in"`` converts positions (never the channels or the written file)
 under that convention (CMU: 1 file unit = 0.0254 / 0.45 m = 56.444 mm); a TRC, CSV or
 C3D written from file units gets them converted to mm (``formats.for_output``). The rate
-is not in the files; CMU captured at 120 Hz (option ``rate=``).
+is not in the files, so a clip reads as 0 Hz, "not known" (as a C3D without
+``POINT:RATE``), unless option ``rate=`` gives it (CMU captured at 120 Hz): a
+``--max-gap`` in seconds then fails rather than being read at a rate nobody stated.
 
 Writing patches the AMC the Motion was read from: every line is echoed byte for byte
 except the cells whose observed state changed (filled: a number with 6 significant digits,
@@ -519,7 +521,7 @@ def _units(asf: _Asf, units: str | None) -> tuple[float, str]:
     return INCH_IN[units] / asf.length_unit, units
 
 
-def read(path: Path, *, asf: Path | str | None = None, rate: float = 120.0,
+def read(path: Path, *, asf: Path | str | None = None, rate: float | None = None,
          units: str | None = None, **_options) -> Motion:
     """Read an AMC motion and its ASF skeleton; points are root and bone ends from FK.
 
@@ -530,7 +532,8 @@ def read(path: Path, *, asf: Path | str | None = None, rate: float = 120.0,
     asf
         The skeleton file; found beside the AMC when omitted.
     rate
-        Frame rate in Hz (AMC files do not store it; CMU captured at 120 Hz).
+        Frame rate in Hz (AMC files do not store it; CMU captured at 120 Hz). Default
+        None: the clip reads as 0 Hz, not known.
     units
         None keeps file units; "mm", "cm", "m" or "in" converts positions assuming the
         ASF lengths are inches divided by ``:units length`` (the CMU convention).
@@ -567,7 +570,7 @@ def read(path: Path, *, asf: Path | str | None = None, rate: float = 120.0,
                        cut_line, unread, frame_notes)
     positions, observed = source.state.points()
     return Motion(positions * scale, observed, tuple(latin1_label(n) for n in skeleton.names),
-                  rate, label, source=source, path=path, first_frame=first_frame)
+                  rate or 0.0, label, source=source, path=path, first_frame=first_frame)
 
 
 # --------------------------------------------------------------------------- channel space

@@ -60,7 +60,9 @@ notes say so.
 Rate, first in this order: the ``# rate:`` comment; the Vicon rate line or the Motive
 frame rate; the ``Time``
 column (median step, or the mean step when all steps agree within rounding); the
-``rate=`` option; 120 Hz. A rate the file states (``120`` or ``120 Hz``) must be a
+``rate=`` option; else 0 Hz, "not known" (as a C3D without ``POINT:RATE``), so that a
+``--max-gap`` in seconds fails rather than being read at a rate nobody stated. A rate
+the file states (``120`` or ``120 Hz``) must be a
 positive, finite number (``inf``, ``0``, ``-120``, ``nan`` or ``abc`` is a FormatError).
 Units: the ``# units:`` comment; the Vicon units row or the Motive length units; the
 ``units=`` option; ``"mm"``
@@ -78,9 +80,10 @@ own precision; ``decimals=`` overrides), so read-back values agree with the Moti
 precision. Any other Motion is written as a new plain CSV:
 ``# units: mm, rate: 120`` then ``Frame,Time,NAME_X,NAME_Y,NAME_Z,...``, empty cells for
 missing samples, coordinates as the shortest text that reads back exactly; a clip without
-a rate (0 Hz, a C3D with no ``POINT:RATE``) is written at 120 Hz, and a clip without
-markers is refused. A patched file that ended without a line ending still does, and its
-last row keeps its cells (an observed last value byte for byte). If the file was cut
+a rate (0 Hz: a C3D with no ``POINT:RATE``, an AMC, a file stating none) is written at
+120 Hz, and a clip without markers is refused. A patched file that ended without a line
+ending still does, and its last row keeps its cells (an observed last value byte for
+byte). If the file was cut
 short inside that row and the row is patched, its unread last cell is blanked (unless
 filled) and a short row gets the empty cells of a complete one, never more, so the output
 reads back as written.
@@ -122,7 +125,9 @@ from ._text import (
     write_lines,
 )
 
-DEFAULT_RATE = 120.0
+# The rate a new file states for a clip without one (_text.writable_rate). A file that
+# states none is read as 0 Hz, not as this: see the module docstring.
+WRITTEN_RATE = 120.0
 DEFAULT_UNITS = "mm"
 KINDS = ("csv", "vicon", "headerless", "ktk", "motive")
 
@@ -150,7 +155,8 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
     path
         The file.
     rate
-        Frame rate in Hz, used only when the file states none (default 120).
+        Frame rate in Hz, used only when the file states none (default None: such a file
+        reads as 0 Hz, not known).
     units
         Length unit, used only when the file states none (default ``"mm"``; ``"m"`` for
         Kinetics Toolkit files).
@@ -241,7 +247,7 @@ def new_file_lines(motion: Motion, decimals: int | None = None) -> list[str]:
     names = new_file_names(motion.labels)
     header = ["Frame", "Time"] + [quote(f"{name}_{axis}", ",")
                                   for name in names for axis in "XYZ"]
-    rate = writable_rate(motion.rate, DEFAULT_RATE)
+    rate = writable_rate(motion.rate, WRITTEN_RATE)
     lines = [f"# units: {motion.units}, rate: {format_float(rate)}\n",
              ",".join(header) + "\n"]
     lines.extend(",".join(cells) + "\n" for cells in frame_rows(
@@ -361,7 +367,7 @@ def _read_vicon(path: Path, lines: list[str], delimiter: str, rate: float | None
              + frame_steps_notes(frames, row_lines, "Frame", first_frame))
     source = TextSource("vicon", tuple(lines), delimiter, row_lines, columns, observed,
                         labels, notes=notes, cut_row=cut, width=width.cells)
-    return Motion(positions, observed, labels, file_rate or rate or DEFAULT_RATE,
+    return Motion(positions, observed, labels, file_rate or rate or 0.0,
                   unit_set.pop() if unit_set else (units or DEFAULT_UNITS),
                   source=source, path=path, first_frame=first_frame)
 
@@ -426,7 +432,7 @@ def _read_motive(path: Path, lines: list[str], start: int, delimiter: str,
         + _cut_note(cut) + frame_steps_notes(frames, row_lines, axes_row[0], first_frame))
     source = TextSource("motive", tuple(lines), delimiter, row_lines, columns, observed,
                         labels, notes=notes, cut_row=cut, width=width.cells)
-    return Motion(positions, observed, labels, file_rate or rate or DEFAULT_RATE,
+    return Motion(positions, observed, labels, file_rate or rate or 0.0,
                   MOTIVE_UNITS.get(length_units.lower(), length_units.lower())
                   or units or DEFAULT_UNITS,
                   source=source, path=path, first_frame=first_frame)
@@ -518,7 +524,7 @@ def _rate(path: Path, comments: dict[str, str], from_times: float | None,
     for candidate in (from_times, option):
         if candidate is not None and candidate > 0:
             return float(candidate)
-    return DEFAULT_RATE
+    return 0.0      # not known: see the module docstring
 
 
 def _filled_width(headers: list[str]) -> int:

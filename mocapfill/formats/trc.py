@@ -44,7 +44,9 @@ Strict where leniency would misread the file:
 - a marker name given twice in the ``Frame#`` line, and a ``DataRate`` that is not a
   positive, finite number (``inf``, ``0``, ``nan``), are FormatErrors.
 
-Rate: ``DataRate``, else the ``Time`` column, else the ``rate=`` option, else 120 Hz.
+Rate: ``DataRate``, else the ``Time`` column, else the ``rate=`` option, else 0 Hz, "not
+known" (as a C3D without ``POINT:RATE``), so that a ``--max-gap`` in seconds fails rather
+than being read at a rate nobody stated.
 Units: ``Units``, else the ``units=`` option, else mm. ``first_frame``: the first
 ``Frame#`` value, else ``OrigDataStartFrame``, else 1.
 
@@ -60,8 +62,8 @@ values, each marker name followed by three tabs, ``X1 Y1 Z1`` ... numbered from 
 blank line, then rows whose cells are each followed by a tab; ``Frame#`` counts from
 ``first_frame`` (= ``OrigDataStartFrame``), time from 0, missing samples are empty
 cells, coordinates the shortest text that reads back exactly. A clip without a rate (0
-Hz, a C3D with no ``POINT:RATE``) is written at 120 Hz, with a note; a clip without markers is
-refused.
+Hz: a C3D with no ``POINT:RATE``, an AMC, a file stating none) is written at 120 Hz,
+with a note; a clip without markers is refused.
 
 Marker names in a new file have the characters OpenSim rejects in component names
 (whitespace, ``\\``, ``/``, ``*``, ``+``) replaced by ``_``: a TRC is written for OpenSim,
@@ -102,7 +104,9 @@ from ._text import (
     write_lines,
 )
 
-DEFAULT_RATE = 120.0
+# The rate a new file states for a clip without one (_text.writable_rate). A file that
+# states none is read as 0 Hz, not as this: see the module docstring.
+WRITTEN_RATE = 120.0
 DEFAULT_UNITS = "mm"
 HEADER_KEYS = ("DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units",
                "OrigDataRate", "OrigDataStartFrame", "OrigNumFrames")
@@ -122,7 +126,8 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
     path
         The file.
     rate
-        Frame rate in Hz, used only when the file states none (default 120).
+        Frame rate in Hz, used only when the file states none (default None: such a file
+        reads as 0 Hz, not known).
     units
         Length unit, used only when the header has no ``Units`` (default ``"mm"``).
     zero_is_missing
@@ -211,7 +216,7 @@ def _read(path: Path, rate: float | None, units: str | None) -> Motion:
                         labels, declared_frames=declared_frames,
                         truncated_rows_read=truncated, notes=tuple(notes), cut_row=cut,
                         width=width.cells)
-    return Motion(positions, observed, labels, file_rate or rate or DEFAULT_RATE,
+    return Motion(positions, observed, labels, file_rate or rate or 0.0,
                   header.get("Units") or units or DEFAULT_UNITS, source=source, path=path,
                   first_frame=first_frame)
 
@@ -256,7 +261,7 @@ def patches(motion: Motion) -> bool:
 
 def new_file_lines(motion: Motion, name: str, decimals: int | None = None) -> list[str]:
     """The lines of a new TRC file in OpenSim's layout (see the module docstring)."""
-    rate = writable_rate(motion.rate, DEFAULT_RATE)
+    rate = writable_rate(motion.rate, WRITTEN_RATE)
     n_frames, n_markers = motion.n_frames, motion.n_markers
     values = (format_float(rate), format_float(rate), str(n_frames), str(n_markers),
               motion.units, format_float(rate), str(motion.first_frame), str(n_frames))

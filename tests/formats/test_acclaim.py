@@ -178,9 +178,14 @@ def test_bone_lines_may_come_in_any_order(tmp_path):
     np.testing.assert_array_equal(a.positions, b.positions)
 
 
-def test_rate_defaults_to_120_and_frame_numbers_start_where_the_file_does(tmp_path):
-    motion = acclaim.read(write_pair(tmp_path, [frame(7), frame(8)]))
-    assert motion.rate == 120.0 and motion.first_frame == 7 and motion.n_frames == 2
+def test_rate_is_not_known_and_frame_numbers_start_where_the_file_does(tmp_path):
+    # An AMC states no rate: 0 Hz, as a C3D without POINT:RATE (it was 120, CMU's, so a
+    # --max-gap in seconds was read at a rate the file never stated).
+    amc = write_pair(tmp_path, [frame(7), frame(8)])
+    motion = acclaim.read(amc)
+    assert motion.rate == 0.0 and motion.first_frame == 7 and motion.n_frames == 2
+    assert acclaim.read(amc, rate=120).rate == 120.0
+    assert formats.read(amc, rate=60).rate == 60.0
 
 
 def test_frame_numbers_that_skip_are_noted_and_the_frames_read_in_file_order(tmp_path):
@@ -746,7 +751,10 @@ def test_a_position_file_written_from_an_amc_is_in_mm(tmp_path, suffix):
     back = formats.read(out)
     assert back.units == "mm"
     np.testing.assert_allclose(back.positions, amc.positions * 25.4 / 0.5, rtol=1e-6)
-    assert notes == ("lengths in in/0.5 converted to mm (1 in/0.5 = 50.8 mm)",)
+    # A TRC or CSV states a rate, which an AMC does not give.
+    assert notes == (("lengths in in/0.5 converted to mm (1 in/0.5 = 50.8 mm)",)
+                     + (("the clip's frame rate is not known (0 Hz): written as 120 Hz",)
+                        if suffix != ".c3d" else ()))
 
 
 def test_an_npz_written_from_an_amc_keeps_its_unit(tmp_path):

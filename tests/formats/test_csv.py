@@ -181,11 +181,25 @@ def test_time_column_gives_rate_and_frame_column_first_frame(tmp_path):
     assert motion.first_frame == 11
 
 
-def test_without_time_column_rate_option_is_used(tmp_path):
+def test_without_time_column_rate_option_is_used_else_the_rate_is_not_known(tmp_path):
     path = write_text(tmp_path, "A_X,A_Y,A_Z\n1,2,3\n1,2,3\n")
     assert csvfmt.read(path, rate=250).rate == 250
-    assert csvfmt.read(path).rate == 120
+    # 0 Hz, as a C3D without POINT:RATE: it was 120, so --max-gap 0.5s meant 60 frames
+    # of a rate the file never stated.
+    assert csvfmt.read(path).rate == 0
     assert csvfmt.read(path).first_frame == 1
+
+
+@pytest.mark.parametrize("text", [
+    "Trajectories\n\n,,A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3\n2,0,1,2,3\n",
+    "Format Version,1.23,Length Units,Millimeters\n\n,Type,Marker,Marker,Marker\n"
+    ",Name,A,A,A\n,ID,1,1,1\n,,Position,Position,Position\n"
+    "Frame,Time (Seconds),X,Y,Z\n0,,1,2,3\n1,,1,2,3\n",
+], ids=["vicon", "motive"])
+def test_a_vicon_or_motive_export_stating_no_rate_reads_as_0_hz(tmp_path, text):
+    path = write_text(tmp_path, text)
+    assert csvfmt.read(path).rate == 0
+    assert csvfmt.read(path, rate=250).rate == 250
 
 
 def test_time_column_wins_over_rate_option(tmp_path):
@@ -575,7 +589,7 @@ def test_headerless_file_with_3k_columns_is_k_markers(tmp_path):
     motion = csvfmt.read(write_text(tmp_path, "1,2,3,4,5,6\n1.5,2.5,3.5,NaN,NaN,NaN\n"))
     assert motion.labels == ("M001", "M002")
     assert motion.observed.tolist() == [[True, True], [True, False]]
-    assert motion.rate == 120
+    assert motion.rate == 0                 # no time column: the file states no rate
 
 
 def test_headerless_file_may_start_with_an_all_missing_frame(tmp_path):

@@ -47,6 +47,22 @@ def test_reads_labels_rate_units_and_first_frame(tmp_path):
     np.testing.assert_array_equal(motion.positions[2, 1], [11, 21, 31])
 
 
+def test_a_file_stating_no_rate_reads_as_0_hz_unless_the_rate_option_gives_one(tmp_path):
+    # No DataRate value and no Time cells: 0 Hz, as a C3D without POINT:RATE (it was
+    # 120, so a --max-gap in seconds was read at a rate the file never stated).
+    def no_data_rate(rows: list[str]) -> str:
+        return trc_text(rows).replace("100\t100\t3", "\t\t3").replace("mm\t100", "mm\t")
+
+    untimed = ["\t".join(cell if k != 1 else "" for k, cell in enumerate(row.split("\t")))
+               for row in ROWS]
+    path = write_text(tmp_path, no_data_rate(untimed), "a.trc")
+    assert "\t\t3\t2\tmm\t\t1\t3\n" in path.read_text()
+    assert trc.read(path).rate == 0
+    assert trc.read(path, rate=60).rate == 60
+    # The Time column still gives the rate where the header states none.
+    assert trc.read(write_text(tmp_path, no_data_rate(ROWS), "b.trc")).rate == 100
+
+
 def test_blank_cells_are_missing(tmp_path):
     motion = trc.read(write_text(tmp_path, trc_text(ROWS), "a.trc"))
     assert motion.observed.tolist() == [[True, True], [True, False], [True, True]]
