@@ -14,6 +14,10 @@ Reading is tolerant, because real files disagree with their own headers:
 
 - cells are tab- or comma-separated (whichever the ``DataRate`` line uses); blanks
   around cells and around marker names are ignored;
+- the marker names of a tab-delimited file are split on tabs alone, as OpenSim splits
+  them: a ``"`` in a name is a character of it (``R"KNE``; CSV quoting made it open a
+  quoted cell that swallowed the names up to the next ``"``). A comma-delimited file (a
+  spreadsheet's) keeps CSV quoting, which a name holding a comma needs there;
 - the ``X1 Y1 Z1`` line and the blank line are optional; key and value lines are matched
   on their non-empty cells when padding makes their cell counts differ;
 - the marker names line and the rows are trusted over ``NumMarkers`` and ``NumFrames``:
@@ -68,8 +72,11 @@ with a note; a clip without markers is refused.
 Marker names in a new file have the characters OpenSim rejects in component names
 (whitespace, ``\\``, ``/``, ``*``, ``+``) replaced by ``_``: a TRC is written for OpenSim,
 and a name it rejects makes the whole file unusable there, whereas the renamed marker
-is still recognisable; names that two labels become alike get ``_2``, ``_3`` ...
-(``formats.write`` notes the renaming). A patched file keeps its names as they are.
+is still recognisable. ``"`` is replaced too: OpenSim keeps it as a character of the
+name, but readers that split tab-separated text as CSV (pandas' ``read_csv``,
+spreadsheets) take it for a quote and merge the names after it. Names that two labels
+become alike get ``_2``, ``_3`` ... (``formats.write`` notes the renaming). A patched
+file keeps its names as they are.
 """
 from __future__ import annotations
 
@@ -112,7 +119,9 @@ HEADER_KEYS = ("DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units",
                "OrigDataRate", "OrigDataStartFrame", "OrigNumFrames")
 
 _AXIS_LABEL = re.compile(r"^[XYZ]\d+$", re.IGNORECASE)
-_OPENSIM_REJECTS = re.compile(r"[\s\\/*+]")
+# What a new file's marker names do not hold: the characters OpenSim rejects in a
+# component name, and a double quote (see the module docstring).
+_NOT_IN_NAMES = re.compile(r'[\s\\/*+"]')
 # What would split the PathFileType line into lines (str.splitlines') or cells (a tab).
 _HEADER_BREAKS = re.compile("[\t\n\v\f\r\x1c-\x1e\x85\u2028\u2029]+")
 
@@ -171,7 +180,7 @@ def _read(path: Path, rate: float | None, units: str | None) -> Motion:
     if names_at < 0:
         raise FormatError(path, "TRC header has no Frame# Time <marker names> line")
     labels = tuple(name for name in (cell_text(c) for c in
-                                     split_cells(_body(lines, names_at), delimiter)[2:])
+                                     _name_cells(_body(lines, names_at), delimiter)[2:])
                    if name)
     if not labels:
         raise FormatError(path, "TRC file names no markers")
@@ -279,8 +288,9 @@ def new_file_lines(motion: Motion, name: str, decimals: int | None = None) -> li
 
 
 def opensim_name(label: str, index: int) -> str:
-    """``label`` with the characters OpenSim rejects replaced by ``_`` (``M001`` if empty)."""
-    name = _OPENSIM_REJECTS.sub("_", str(label).strip())
+    """``label`` with the characters OpenSim rejects, and ``"``, replaced by ``_``
+    (``M001`` if empty)."""
+    name = _NOT_IN_NAMES.sub("_", str(label).strip())
     return name or f"M{index + 1:03d}"
 
 
@@ -308,6 +318,13 @@ def _find(lines: Sequence[str], start: int, stop: int, test) -> int:
         if test(_body(lines, i)):
             return i
     return -1
+
+
+def _name_cells(body: str, delimiter: str) -> list[str]:
+    """The raw cells of the ``Frame#`` line: split on tabs alone in a tab-delimited file,
+    as OpenSim splits it, so that a ``"`` in a name stays in that name (see the module
+    docstring); with CSV quoting in a comma-delimited one."""
+    return body.split(delimiter) if delimiter == "\t" else split_cells(body, delimiter)
 
 
 def _header(keys_body: str, values_body: str, delimiter: str) -> dict[str, str]:

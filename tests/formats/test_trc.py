@@ -81,6 +81,19 @@ def test_comma_delimited_file(tmp_path):
     assert motion.observed.tolist() == [[True, True], [True, False], [True, True]]
 
 
+def test_a_quote_in_a_name_of_a_tab_delimited_file_is_part_of_that_name(tmp_path):
+    # OpenSim splits on tabs alone; CSV quoting made R"KNE open a quoted cell that took
+    # the names up to the next quote: 2 markers read of 4, exit 0.
+    names = 'LKNE\t\t\tR"KNE\t\t\tLANK\t\t\tR"ANK"\t\t\t'
+    rows = [row + "\t1\t2\t3\t4\t5\t6" for row in ROWS]
+    motion = trc.read(write_text(tmp_path, trc_text(rows, markers=4, names=names), "a.trc"))
+    assert motion.labels == ("LKNE", 'R"KNE', "LANK", 'R"ANK"')
+    assert motion.source.notes == ()
+    # A comma-delimited file (a spreadsheet's) keeps CSV quoting: a name may hold a comma.
+    text = trc_text(ROWS).replace("\t", ",").replace("R ASI", '"R,ASI"')
+    assert trc.read(write_text(tmp_path, text, "b.trc")).labels == ("LASI", "R,ASI")
+
+
 def test_axis_line_and_blank_line_are_optional(tmp_path):
     motion = trc.read(write_text(tmp_path, trc_text(ROWS, axes=False, blank=False), "a.trc"))
     assert motion.n_frames == 3 and motion.observed[0].all()
@@ -410,6 +423,22 @@ def test_a_new_trc_notes_the_names_it_changes(tmp_path):
         "1 marker name(s) written as names OpenSim accepts: 'C D' -> 'C_D'",)
     assert formats.write(one, tmp_path / "b.csv") == ()      # a CSV holds 'C D' as it is
     assert formats.write(clip.replace(labels=("A", "B", "C", "D")), tmp_path / "c.trc") == ()
+
+
+def test_a_new_trc_replaces_a_quote_in_a_name_and_reads_back_every_marker(tmp_path):
+    # R"KNE converted from a C3D read back as 2 markers of 4 (exit 0). OpenSim keeps the
+    # quote, but CSV-minded readers of the tab-separated file (pandas) take it for one.
+    from tests.helpers import smooth_clip
+
+    clip = smooth_clip(30, 4).replace(labels=("LKNE", 'R"KNE', "LANK", "RANK"))
+    formats.write(clip, tmp_path / "a.c3d")
+    c3d = formats.read(tmp_path / "a.c3d")
+    notes = formats.write(c3d, tmp_path / "a.trc")
+    assert notes == ("1 marker name(s) written as names OpenSim accepts: 'R\"KNE' -> "
+                     "'R_KNE'",)
+    back = formats.read(tmp_path / "a.trc")
+    assert back.labels == ("LKNE", "R_KNE", "LANK", "RANK")
+    np.testing.assert_array_equal(back.positions, c3d.positions)
 
 
 def test_a_new_csv_notes_the_names_it_changes(tmp_path):
