@@ -3,8 +3,9 @@
 markers: C3D model outputs). Missing samples are stored as NaN and as False in
 ``observed``. Only ``positions`` is required; labels and units may be stored as bytes.
 
-``rate`` 0 means "not known", as for a C3D without ``POINT:RATE``; a negative or
-non-finite rate is a FormatError."""
+``rate`` 0 means "not known", as for a C3D without ``POINT:RATE``, and so does an archive
+without ``rate`` (as a CSV or TRC stating none); a negative or non-finite rate is a
+FormatError."""
 from __future__ import annotations
 
 import zipfile
@@ -42,7 +43,7 @@ def read(path: Path, **_options) -> Motion:
                         else np.isfinite(positions).all(axis=2))
             labels = ([_text(s) for s in np.asarray(data["labels"]).reshape(-1)]
                       if "labels" in data else None)
-            rate = _scalar(data, "rate", path) if "rate" in data else 120.0
+            rate = _scalar(data, "rate", path) if "rate" in data else 0.0
             units = (_text(np.asarray(data["units"]).reshape(-1)[0]) if "units" in data
                      else "mm")
             first_frame = int(_scalar(data, "first_frame", path)) \

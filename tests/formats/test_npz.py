@@ -28,6 +28,15 @@ def test_a_clip_of_no_frames_reads_but_converting_it_is_refused(tmp_path, suffix
     assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.npz"]
 
 
+def test_an_archive_without_rate_reads_as_0_hz_not_known(tmp_path):
+    # As a CSV or TRC stating none: a --max-gap in seconds then fails instead of being
+    # read at a rate nobody stated.
+    path = tmp_path / "clip.npz"
+    np.savez(path, positions=np.ones((3, 2, 3)))
+    assert npz.read(path).rate == 0.0
+    assert npz.read(save(tmp_path / "rated.npz", rate=250.0)).rate == 250.0
+
+
 @pytest.mark.parametrize("rate", [np.inf, np.nan, -120.0])
 def test_a_negative_or_non_finite_rate_is_a_format_error(tmp_path, rate):
     path = save(tmp_path / "clip.npz", rate=rate)
