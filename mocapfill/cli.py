@@ -117,14 +117,25 @@ def _refuse_folder_name(value, param=None, ctx=None, param_hint=None) -> None:
 
 
 class _OutputFile(click.Path):
-    """A file the command writes (see :func:`_refuse_folder_name`)."""
+    """A file the command writes (see :func:`_refuse_folder_name`). An existing one is
+    replaced, whatever its permissions (as :class:`_InputFile`, not checked for reading)."""
 
     def __init__(self) -> None:
-        super().__init__(path_type=Path)
+        super().__init__(path_type=Path, readable=False)
 
     def convert(self, value, param, ctx):
         _refuse_folder_name(value, param, ctx)
         return super().convert(value, param, ctx)
+
+
+class _InputFile(click.Path):
+    """A file the command reads (repair's paths: files, folders and OUT). Not checked for
+    read permission: click's check made an unreadable IN a usage error (exit 2, "Path 'x'
+    is not readable"), where the reader reports it as it does any file it cannot read,
+    one line naming it and exit 123 (in a batch, a failed file)."""
+
+    def __init__(self, path_type=Path) -> None:
+        super().__init__(path_type=path_type, readable=False)
 
 
 class _OutputFolder(click.Path):
@@ -202,7 +213,8 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
 
 
 @main.command()
-@click.argument("paths", nargs=-1, required=True, metavar="IN... [OUT]", type=click.Path())
+@click.argument("paths", nargs=-1, required=True, metavar="IN... [OUT]",
+              type=_InputFile(path_type=None))
 @click.option("-o", "--out-dir", type=_OutputFolder(), default=None,
               help="Batch: repair every IN (files, folders walked recursively for known "
                    "suffixes, quoted globs) into this folder, mirroring the input tree. "
@@ -523,7 +535,7 @@ def _solver_options(**values) -> dict:
 
 
 @main.command()
-@click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
+@click.argument("in_path", metavar="IN", type=_InputFile())
 @click.argument("out_path", metavar="OUT", type=_OutputFile())
 @click.option("--mr", type=float, default=None,
               help="Random missing: fraction in [0, 1) of the markers removed in every frame.")
@@ -589,7 +601,7 @@ def _joint_samples_removed(motion, gapped) -> int:
 
 
 @main.command()
-@click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
+@click.argument("in_path", metavar="IN", type=_InputFile())
 @click.option("--theta", type=float, default=1e-3, show_default=True,
               help="Threshold on consecutive singular-value gaps, relative to the largest "
                    "singular value of the centred, unit-RMS matrix.")
@@ -626,9 +638,9 @@ def _evidence_markers(motion):
 
 
 @main.command()
-@click.argument("truth_path", metavar="TRUTH", type=click.Path(path_type=Path))
-@click.argument("repaired_path", metavar="REPAIRED", type=click.Path(path_type=Path))
-@click.option("--gapped", "gapped_path", type=click.Path(path_type=Path), default=None,
+@click.argument("truth_path", metavar="TRUTH", type=_InputFile())
+@click.argument("repaired_path", metavar="REPAIRED", type=_InputFile())
+@click.option("--gapped", "gapped_path", type=_InputFile(), default=None,
               help="The gapped file that was repaired: its missing samples are scored. "
                    "Default: the samples that differ between TRUTH and REPAIRED by more "
                    "than the two files' storage precision (decimals, float32, C3D scale).")
@@ -686,9 +698,9 @@ def _nothing_to_score(result, truth_path: Path, repaired_path: Path,
 
 
 @main.command()
-@click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
+@click.argument("in_path", metavar="IN", type=_InputFile())
 @click.argument("repaired_path", metavar="[REPAIRED]", required=False,
-                type=click.Path(path_type=Path))
+                type=_InputFile())
 @click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
 @click.option("--gaps-only", is_flag=True, help="List only the markers with missing samples.")
 @_zero_option
@@ -719,9 +731,9 @@ def info(in_path: Path, repaired_path: Path | None, as_json: bool, gaps_only: bo
 
 
 @main.command()
-@click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
+@click.argument("in_path", metavar="IN", type=_InputFile())
 @click.argument("repaired_path", metavar="[REPAIRED]", required=False,
-                type=click.Path(path_type=Path))
+                type=_InputFile())
 @click.option("-o", "--output", "out_path", required=True, type=_OutputFile(),
               help="Image to write: FILE.png, FILE.svg or FILE.html.")
 @click.option("--markers", multiple=True, metavar="NAME|GLOB",
@@ -748,7 +760,7 @@ def plot(in_path: Path, repaired_path: Path | None, out_path: Path, markers: tup
 
 
 @main.command()
-@click.argument("in_path", metavar="IN", type=click.Path(path_type=Path))
+@click.argument("in_path", metavar="IN", type=_InputFile())
 @click.argument("out_path", metavar="OUT", type=_OutputFile())
 @_zero_option
 def convert(in_path: Path, out_path: Path, zero_is_missing: str) -> None:

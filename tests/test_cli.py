@@ -1000,6 +1000,66 @@ def test_an_input_that_cannot_be_read_says_why_not_that_it_cannot_be_parsed(clip
     assert result.stderr == f"mocapfill: error: {path}: cannot read (Permission denied)\n"
 
 
+def _deny_reading(monkeypatch, path: Path) -> None:
+    """Make ``path`` unreadable to this process as mode 000 makes it for a user other than
+    root (the tests may run as root, who reads it anyway): access() and open() refuse."""
+    import builtins
+    import io
+
+    opened, access = builtins.open, os.access
+
+    def denied(file, *args, **kwargs):
+        if isinstance(file, (str, os.PathLike)) and os.fspath(file) == str(path):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), os.fspath(file))
+        return opened(file, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "open", denied)
+    monkeypatch.setattr(io, "open", denied)
+    monkeypatch.setattr(os, "access", lambda file, mode, *a, **k: (
+        not (mode & os.R_OK and os.fspath(file) == str(path)) and access(file, mode, *a, **k)))
+
+
+@pytest.mark.parametrize("args", [
+    ["repair", "{x}", "o.npz"], ["info", "{x}"], ["info", "gapped.npz", "{x}"],
+    ["rank", "{x}"], ["convert", "{x}", "o.npz"], ["score", "{x}", "gapped.npz"],
+    ["score", "truth.npz", "gapped.npz", "--gapped", "{x}"], ["plot", "{x}", "-o", "o.svg"],
+    ["simulate", "{x}", "o.npz", "--mr", "0.2"],
+])
+def test_an_unreadable_input_is_a_failed_file_not_a_usage_error(clip_files, monkeypatch,
+                                                                 args):
+    # click's check of IN made it "Invalid value for 'IN': Path 'x' is not readable", a
+    # usage error (exit 2); the README puts a file that cannot be read under 123.
+    monkeypatch.chdir(clip_files)
+    formats.write(formats.read("gapped.npz"), clip_files / "x.npz")
+    _deny_reading(monkeypatch, Path("x.npz"))
+    result = run(*(a.format(x="x.npz") for a in args))
+    assert result.exit_code == 123, result.output
+    assert result.stderr == "mocapfill: error: x.npz: cannot read (Permission denied)\n"
+    assert not (clip_files / "o.npz").exists() and not (clip_files / "o.svg").exists()
+
+
+def test_an_unreadable_input_is_a_failed_file_of_a_batch(clip_files, monkeypatch):
+    monkeypatch.chdir(clip_files)
+    formats.write(formats.read("gapped.npz"), clip_files / "x.npz")
+    _deny_reading(monkeypatch, Path("x.npz"))
+    result = run("repair", "x.npz", "gapped.npz", "-o", "out", "-j", "1")
+    assert result.exit_code == 123, result.output
+    assert result.stderr.splitlines()[0] == ("mocapfill: error: x.npz: cannot read "
+                                             "(Permission denied)")
+    assert (clip_files / "out" / "gapped.npz").exists()
+
+
+def test_an_unreadable_existing_output_is_replaced_not_refused(clip_files, monkeypatch):
+    # Replaced by renaming, which its own permissions do not stop (as an output folder's
+    # do); click's check of OUT made it a usage error.
+    monkeypatch.chdir(clip_files)
+    (clip_files / "o.npz").write_bytes(b"old")
+    _deny_reading(monkeypatch, Path("o.npz"))
+    result = run("convert", "gapped.npz", "o.npz")
+    assert result.exit_code == 0, result.output
+    assert (clip_files / "o.npz").read_bytes() != b"old"
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_simulate_in_channel_space_counts_the_joint_samples_hit_and_the_positions_lost(
         tmp_path, seed):
