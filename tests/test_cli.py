@@ -819,6 +819,42 @@ def test_an_output_that_is_a_named_pipe_is_written_through_not_replaced(tmp_path
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted({fifo.name, target.name})
 
 
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="Linux's /dev/full")
+@pytest.mark.parametrize("args", [
+    ["plot", "gapped.npz", "-o", "full.png"], ["plot", "gapped.npz", "-o", "full.svg"],
+    ["plot", "gapped.npz", "-o", "full.html"],
+    ["repair", "gapped.npz", "-o", "out", "-j", "1", "--report", "full.json"],
+])
+def test_an_output_on_a_full_device_is_named_in_the_error(clip_files, monkeypatch, args):
+    # A write to a device (written through, not replaced) fails with an OSError that
+    # names no file: the error was "No space left on device" alone.
+    if args[0] == "plot":
+        pytest.importorskip("matplotlib")
+    monkeypatch.chdir(clip_files)
+    out = next(a for a in args if a.startswith("full."))
+    (clip_files / out).symlink_to("/dev/full")
+    result = run(*args)
+    assert result.exit_code == 123
+    assert result.stderr.splitlines()[-1] == f"mocapfill: error: {out}: No space left on device"
+
+
+def test_a_plot_that_fails_to_be_written_names_its_file(clip_files, monkeypatch):
+    # A full disk fails the write with an OSError naming no file (the temporary's name, had
+    # it been named, the user never gave).
+    pytest.importorskip("matplotlib")
+    from matplotlib.figure import Figure
+
+    def full(self, *args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(Figure, "savefig", full)
+    monkeypatch.chdir(clip_files)
+    result = run("plot", "gapped.npz", "-o", "p.png")
+    assert result.exit_code == 123
+    assert result.stderr == "mocapfill: error: p.png: No space left on device\n"
+    assert sorted(p.name for p in clip_files.iterdir()) == ["gapped.npz", "truth.npz"]
+
+
 @pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="Linux's /proc/self/fd")
 def test_an_output_that_is_the_commands_own_stdout_file_gets_the_text_after_it(tmp_path):
     # `bench accuracy --json /dev/stdout > out.txt`: /dev/stdout links to /proc/self/fd/1,

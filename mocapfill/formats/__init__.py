@@ -337,6 +337,9 @@ def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = Non
     nothing). Atomicity means nothing there; a write that fails (``/dev/full``: no space
     left) raises as it happens.
 
+    An OSError that names the temporary file, or no file (a write that failed), is raised
+    naming ``path`` (:func:`_naming`).
+
     A ``path`` that is this process's own standard output or error, where that is a
     regular file (``--json /dev/stdout > out.txt``), gets the text after what the command
     printed there: renaming over ``/dev/stdout`` (a link to ``/proc/self/fd/1``) replaced
@@ -345,23 +348,30 @@ def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = Non
     """
     stream = _own_stream(path)
     if stream is not None:
-        with tempfile.TemporaryDirectory(prefix="mocapfill-") as folder:
-            tmp = os.path.join(folder, f"out{suffix}")
-            yield tmp
-            stream.flush()
-            with open(tmp, "rb") as written, open(stream.fileno(), "wb",
-                                                  closefd=False) as through:
-                shutil.copyfileobj(written, through)
+        tmp = None
+        try:
+            with tempfile.TemporaryDirectory(prefix="mocapfill-") as folder:
+                tmp = os.path.join(folder, f"out{suffix}")
+                yield tmp
+                stream.flush()
+                with open(tmp, "rb") as written, open(stream.fileno(), "wb",
+                                                      closefd=False) as through:
+                    shutil.copyfileobj(written, through)
+        except OSError as exc:
+            raise _naming(exc, path, tmp) from None
         return
     if _special_file(path):
-        yield str(path)
+        try:
+            yield str(path)
+        except OSError as exc:
+            raise _naming(exc, path, None) from None
         return
     directory = path.parent if str(path.parent) else Path(".")
     try:
         fd, tmp = tempfile.mkstemp(prefix=temp_prefix(path.name, suffix), suffix=suffix,
                                    dir=directory)
     except OSError as exc:
-        raise _naming(exc, path) from None
+        raise _naming(exc, path, None) from None
     os.close(fd)
     try:
         yield tmp
@@ -372,17 +382,21 @@ def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = Non
         os.replace(tmp, path)
     except OSError as exc:
         _discard(tmp)
-        if exc.filename is None or os.fspath(exc.filename) != tmp:
-            raise
-        raise _naming(exc, path) from None
+        raise _naming(exc, path, tmp) from None
     except BaseException:
         _discard(tmp)
         raise
 
 
-def _naming(exc: OSError, path: Path) -> OSError:
-    """``exc`` about ``path``, where it named the temporary file (a full disk, a folder
-    that takes no new file): the user knows the output's name, not ".out.json.x1y2.tmp"."""
+def _naming(exc: OSError, path: Path, tmp: str | None) -> OSError:
+    """``exc`` about ``path`` where it named the temporary file ``tmp`` (a full disk, a
+    folder that takes no new file) or no file at all (a write that failed: ``/dev/full``,
+    a full disk), else ``exc`` itself: the user knows the output's name, not
+    ".out.json.x1y2.tmp", and "No space left on device" alone did not say which file of a
+    command (a plot, a report) could not be written."""
+    named = exc.filename is None or (tmp is not None and os.fspath(exc.filename) == tmp)
+    if not named or exc.errno is None:      # another file's error, or not the system's
+        return exc
     return OSError(exc.errno, exc.strerror, str(path))
 
 
