@@ -351,11 +351,14 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
 
     # What the reader worked around (a cut last row: the user should know), shown with
     # the writer's notes once OUT is written: a repair that fails shows its error alone.
-    _write_noting(result.motion, out_path, read=(in_path, (*notes, *reader_notes(motion))))
+    # The gaps report is written with OUT (see _write_noting): one failing leaves neither.
+    beside = None
     if gaps_report is not None:
-        from .report import write_gaps_report
+        from .report import gaps_report_text
 
-        write_gaps_report(result, gaps_report)
+        beside = (gaps_report, gaps_report_text(result, gaps_report))
+    _write_noting(result.motion, out_path, read=(in_path, (*notes, *reader_notes(motion))),
+                  beside=beside)
     click.echo(_summary_line(result, in_path, out_path), err=True)
     if check and result.left:
         sys.exit(EXIT_CHECK_FAILED)
@@ -778,14 +781,24 @@ def convert(in_path: Path, out_path: Path, zero_is_missing: str) -> None:
 
 
 def _write_noting(motion, out_path: Path,
-                  read: tuple[Path, tuple[str, ...]] | None = None) -> None:
+                  read: tuple[Path, tuple[str, ...]] | None = None,
+                  beside: tuple[Path, str] | None = None) -> None:
     """Write OUT, then show what its format could not hold as the clip had it (model
     outputs left out of a TRC, lengths converted to mm), after ``read``'s notes (IN and
     what its reader worked around), if given. Shown once OUT is written, so that a
-    command that fails prints its one error line alone."""
+    command that fails prints its one error line alone.
+
+    ``beside`` (a path and its text, repair's ``--gaps-report``) is written to its
+    temporary file before OUT and put in place after it: a run that fails on either
+    leaves no new or changed OUT or report (but where the report's rename fails once OUT
+    is in place, which a folder checked before the repair and already written in makes
+    unlikely)."""
+    from contextlib import nullcontext
+
     from . import formats
 
-    written = formats.write(motion, out_path)
+    with formats.text_pending(*beside) if beside is not None else nullcontext():
+        written = formats.write(motion, out_path)
     for path, notes in ([read] if read else []) + [(out_path, written)]:
         for note in notes:
             click.echo(f"mocapfill: note: {path}: {note}", err=True)

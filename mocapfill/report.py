@@ -124,8 +124,9 @@ def gap_rows(result) -> list[dict]:
     return rows
 
 
-def write_gaps_report(result, path: Path) -> None:
-    """Write the per-gap report as CSV or JSON (by suffix)."""
+def gaps_report_text(result, path: Path) -> str:
+    """The per-gap report as CSV or JSON (by ``path``'s suffix), for the CLI to write with
+    the repaired file (``formats.text_pending``)."""
     rows = gap_rows(result)
     suffix = path.suffix.lower()
     if suffix == ".json":
@@ -138,7 +139,4 @@ def write_gaps_report(result, path: Path) -> None:
         text = buffer.getvalue()
     else:
         raise FormatError(path, "gaps report must be .csv or .json", exit_code=2)
-    # Atomically, like the repaired file: a failed write leaves no half-written report.
-    from .formats import write_text_atomically
-
-    write_text_atomically(path, text)
+    return text

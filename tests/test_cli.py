@@ -1011,6 +1011,55 @@ def test_a_gaps_report_that_cannot_be_written_is_named_not_its_temporary(clip_fi
     assert not [p for p in clip_files.iterdir() if p.name.startswith(".")]
 
 
+@pytest.mark.parametrize("out_exists", [False, True])
+def test_a_gaps_report_that_cannot_be_written_leaves_no_new_or_changed_output(
+        clip_files, monkeypatch, out_exists):
+    # OUT was written (an existing one replaced) before the report failed: a run that
+    # exits 123 left its output as if it had succeeded.
+    monkeypatch.chdir(clip_files)
+    if out_exists:
+        (clip_files / "out.npz").write_bytes(b"old")
+    monkeypatch.setattr(Path, "write_text", _disk_full)
+    result = run("repair", "gapped.npz", "out.npz", "--method", "linear",
+                 "--gaps-report", "gaps.json")
+    assert result.exit_code == 123
+    assert result.stderr == "mocapfill: error: gaps.json: No space left on device\n"
+    assert ((clip_files / "out.npz").read_bytes() == b"old") if out_exists \
+        else not (clip_files / "out.npz").exists()
+    assert sorted(p.name for p in clip_files.iterdir()) == (
+        ["gapped.npz", *(["out.npz"] if out_exists else []), "truth.npz"])
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="Linux's /dev/full")
+def test_a_gaps_report_on_a_full_device_leaves_no_output(clip_files, monkeypatch):
+    monkeypatch.chdir(clip_files)
+    (clip_files / "gaps.json").symlink_to("/dev/full")
+    result = run("repair", "gapped.npz", "out.npz", "--method", "linear",
+                 "--gaps-report", "gaps.json")
+    assert result.exit_code == 123
+    assert result.stderr == "mocapfill: error: gaps.json: No space left on device\n"
+    assert not (clip_files / "out.npz").exists()
+
+
+def test_an_output_that_cannot_be_written_leaves_no_new_gaps_report(clip_files,
+                                                                    monkeypatch):
+    from mocapfill.formats import npz
+
+    def full(motion, path, **_):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.chdir(clip_files)
+    (clip_files / "gaps.csv").write_text("old")
+    monkeypatch.setattr(npz, "write", full)
+    result = run("repair", "gapped.npz", "out.npz", "--method", "linear",
+                 "--gaps-report", "gaps.csv")
+    assert result.exit_code == 123
+    assert result.stderr == "mocapfill: error: out.npz: No space left on device\n"
+    assert (clip_files / "gaps.csv").read_text() == "old"
+    assert sorted(p.name for p in clip_files.iterdir()) == ["gapped.npz", "gaps.csv",
+                                                            "truth.npz"]
+
+
 @pytest.mark.parametrize("suffix", [".npz", ".c3d", ".csv"])
 def test_an_input_that_cannot_be_read_says_why_not_that_it_cannot_be_parsed(clip_files,
                                                                              monkeypatch,

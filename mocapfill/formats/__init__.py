@@ -448,9 +448,20 @@ def write_text_atomically(path: str | os.PathLike, text: str) -> None:
     """Write ``text`` (UTF-8) to ``path`` through :func:`atomic_output`: reports, tables
     and pages are outputs too, and a write that fails (a full disk, Ctrl-C) must leave
     the previous file, not half of a new one."""
-    path = Path(path)
-    with atomic_output(path) as tmp:
+    with text_pending(path, text):
+        pass
+
+
+@contextmanager
+def text_pending(path: str | os.PathLike, text: str):
+    """Write ``text`` (UTF-8) to ``path``'s temporary file (:func:`atomic_output`) now, and
+    put it in place when the block ends normally; the block raising removes it. For a
+    file that stands or falls with another written in the block: a repair's gaps report
+    that cannot be written (a full disk) then leaves no new or changed OUT, and a repair
+    whose OUT cannot be written no new report."""
+    with atomic_output(Path(path)) as tmp:
         Path(tmp).write_text(text, encoding="utf-8")
+        yield
 
 
 def _discard(tmp: str) -> None:
