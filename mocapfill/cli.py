@@ -613,10 +613,13 @@ def _joint_samples_removed(motion, gapped) -> int:
 @_zero_option
 def rank(in_path: Path, theta: float, as_json: bool, zero_is_missing: str) -> None:
     """Estimate the rank of IN's marker matrix (the paper's estimate, unit-invariant)."""
+    from .motion import check_coordinates
     from .rank import estimate_rank
 
     motion = _read(in_path, zero_is_missing)
-    matrix, observed = motion.matrix(_evidence_markers(motion))
+    markers = _evidence_markers(motion)
+    check_coordinates(motion, motion.fillable)
+    matrix, observed = motion.matrix(markers)
     estimate = estimate_rank(matrix, observed, theta=theta)
     if as_json:
         click.echo(json.dumps({"rank": estimate.rank,

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import MocapfillError
-from .motion import Motion, require_motion
+from .motion import Motion, check_coordinates, require_motion
 
 # Length units as files spell them -> millimetres.
 MM_PER_UNIT = {"mm": 1.0, "millimeter": 1.0, "millimetre": 1.0, "cm": 10.0, "m": 1000.0,
@@ -88,6 +88,8 @@ def score(truth: Motion, repaired: Motion, gapped: Motion | None = None) -> Scor
     MocapfillError
         Naming both files: different frames, markers or marker names, or units that
         cannot be compared.
+    FormatError
+        Naming the file: a coordinate too large to process (``motion.check_coordinates``).
     """
     for clip, role in ((truth, "truth"), (repaired, "repaired"), (gapped, "gapped")):
         if clip is not None or role != "gapped":
@@ -95,6 +97,8 @@ def score(truth: Motion, repaired: Motion, gapped: Motion | None = None) -> Scor
     for other, role in ((repaired, "repaired"), (gapped, "gapped")):
         if other is not None:
             _check_comparable(truth, other, role)
+    for clip in (truth, repaired):      # their differences are squared and summed
+        check_coordinates(clip)
     truth_mm, repaired_mm = _common_scale(truth, repaired)
     if gapped is not None:
         target = truth.observed & ~gapped.observed

@@ -14,7 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import named
+from .errors import FormatError, named
+from .scaling import MAX_MAGNITUDE, outsized
 
 
 def finite_samples(positions: np.ndarray) -> np.ndarray:
@@ -185,6 +186,21 @@ def require_motion(value: object, function: str, argument: str = "motion") -> No
         hint = f": read the file first, mocapfill.read({str(value)!r}) gives its Motion"
     raise TypeError(f"{function}() takes a Motion as {argument}, got "
                     f"{type(value).__name__}{hint}")
+
+
+def check_coordinates(motion: Motion, markers: np.ndarray | None = None) -> None:
+    """Before a clip is computed with (repaired, its rank estimated, scored): a
+    FormatError naming its file where an observed coordinate of ``markers`` (bool, one per
+    marker; default all) is larger in magnitude than ``scaling.MAX_MAGNITUDE`` (1e100):
+    sums of squares of such values overflow to inf (a repair failed with a traceback, a
+    score read "RMSE inf"). The error names the largest, its marker and its frame."""
+    found = outsized(motion.positions, markers)
+    if found is not None:
+        value, frame, marker = found
+        raise FormatError(motion.path, f"a coordinate ({value:.6g}: marker "
+                          f"{motion.labels[marker]}, frame {motion.first_frame + frame}) is "
+                          f"too large to process (more than {MAX_MAGNITUDE:g} in magnitude: "
+                          "a corrupt value)")
 
 
 def label_matches(label: str, patterns: Sequence[str]) -> bool:

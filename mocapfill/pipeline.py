@@ -18,10 +18,17 @@ import numpy as np
 
 from ._blas import single_threaded
 from ._memory import release_memory
-from .errors import NothingToRepair, ParameterError, SolverError, named
+from .errors import FormatError, NothingToRepair, ParameterError, SolverError, named
 from .gaps import Gap, find_gaps, gap_frames, missing_runs
-from .motion import Motion, finite_samples, label_matches, matches_nothing, require_motion
-from .scaling import UnitScale
+from .motion import (
+    Motion,
+    check_coordinates,
+    finite_samples,
+    label_matches,
+    matches_nothing,
+    require_motion,
+)
+from .scaling import MAX_MAGNITUDE, UnitScale, outsized
 from .solvers import get_method, option_parameters
 from .solvers._threads import in_order, thread_count
 
@@ -736,6 +743,9 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     TypeError
         ``motion`` is not a Motion (a file name: read it first with ``mocapfill.read``),
         or ``options`` not a RepairOptions.
+    FormatError
+        Naming the clip's file: a coordinate of a marker (or, in channel space, a channel
+        value) too large to process (``motion.check_coordinates``).
     """
     require_motion(motion, "repair")
     if options is not None and not isinstance(options, RepairOptions):
@@ -755,6 +765,8 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
         # patterns together, as for --markers: a batch of several subjects may exclude
         # 'Male:*' and 'Female:*', each file matching one of them.
         raise ParameterError(matches_nothing(motion, "--exclude", options.exclude))
+    # In either space: the jump check squares the positions' steps.
+    check_coordinates(motion, motion.fillable)
     if options.space == "channels":
         return repair_channels(motion, options)
     started = time.perf_counter()
@@ -871,6 +883,14 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
         owner[list(columns)] = joint
     for joint, columns in enumerate(skeleton.translation_columns):
         owner[list(columns)] = joint
+    # The channels are what the method solves for (an angle is a value like any other).
+    found = outsized(values)
+    if found is not None:
+        value, frame, column = found
+        raise FormatError(motion.path, f"a channel value ({value:.6g}: joint "
+                          f"{motion.labels[owner[column]]}, frame {motion.first_frame + frame}) "
+                          f"is too large to process (more than {MAX_MAGNITUDE:g} in magnitude: "
+                          "a corrupt value)")
 
     fill = np.zeros_like(observed)
     for column in range(values.shape[1]):

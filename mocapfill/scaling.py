@@ -13,6 +13,39 @@ from dataclasses import dataclass
 
 import numpy as np
 
+# The largest magnitude of a value mocapfill computes with (repair, rank, score; checked
+# on each clip before, see motion.check_coordinates). Real coordinates lie far below it
+# (a kilometre in micrometres is 1e9). Above 1.3e154 a square overflows float64 (largest
+# 1.8e308) to inf: a score's sum of squared errors read "RMSE inf", the jump check's
+# squared steps made its threshold infinite; above 2^1023 (9e307) the unit scale itself
+# failed (OverflowError in fit). Within 1e100 the difference of two values (2e100), its
+# square (4e200) and a sum of such squares over more samples than any memory holds stay
+# finite. A larger value is a corrupt one, not a measurement.
+MAX_MAGNITUDE = 1e100
+
+
+def outsized(values: np.ndarray, columns: np.ndarray | None = None
+             ) -> tuple[float, int, int] | None:
+    """The value of largest magnitude above :data:`MAX_MAGNITUDE` in a (frames, columns)
+    or (frames, columns, 3) array, among ``columns`` (bool, default all), with its frame
+    and column: (value, frame, column); None where no value is that large. NaN (a
+    missing value) is ignored. The columns' largest and smallest values are found
+    without a copy of the array (20 ms for a 30-minute clip of 41 markers)."""
+    if values.size == 0:
+        return None
+    axes = (0, *range(2, values.ndim))
+    beyond = ((np.fmax.reduce(values, axis=axes) > MAX_MAGNITUDE)
+              | (np.fmin.reduce(values, axis=axes) < -MAX_MAGNITUDE))
+    if columns is not None:
+        beyond &= columns
+    if not beyond.any():
+        return None
+    found = np.flatnonzero(beyond)
+    picked = np.abs(values[:, found])
+    where = np.unravel_index(np.nanargmax(picked), picked.shape)
+    value = float(values[:, found][where])
+    return value, int(where[0]), int(found[where[1]])
+
 
 @dataclass(frozen=True)
 class UnitScale:

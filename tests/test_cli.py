@@ -1085,6 +1085,62 @@ def test_an_input_that_cannot_be_read_says_why_not_that_it_cannot_be_parsed(clip
     assert result.stderr == f"mocapfill: error: {path}: cannot read (Permission denied)\n"
 
 
+_HUGE_CSV = ("# units: mm, rate: 100\nFrame,Time,A_X,A_Y,A_Z,B_X,B_Y,B_Z\n1,0.00,1,2,3,4,5,6\n"
+             "2,0.01,{v},2,3,4,5,6\n3,0.02,1,2,3,,,\n4,0.03,1,2,3,4,5,6\n"
+             "5,0.04,1,2,3,4,5,6\n")
+_TOO_LARGE = "huge.csv: a coordinate ({v:.6g}: marker A, frame 2) is too large to process"
+
+
+@pytest.mark.parametrize("value", [1e308, 1e200])
+@pytest.mark.parametrize("args", [
+    ["repair", "huge.csv", "out.csv"], ["repair", "huge.csv", "out.csv", "--method", "pchip"],
+    ["rank", "huge.csv"], ["score", "huge.csv", "ok.csv"], ["score", "ok.csv", "huge.csv"],
+])
+def test_a_coordinate_too_large_to_process_is_one_line_naming_the_file(tmp_path, monkeypatch,
+                                                                      value, args):
+    # 1e308 was a traceback (OverflowError: math range error) and exit 1, the code of
+    # --check's gaps left; 1e200 scored "RMSE inf mm" with exit 0.
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "huge.csv").write_text(_HUGE_CSV.format(v=value))
+    (tmp_path / "ok.csv").write_text(_HUGE_CSV.format(v=1))
+    result = run(*args)
+    assert result.exit_code == 123, result.output
+    assert result.stderr.startswith(f"mocapfill: error: {_TOO_LARGE.format(v=value)} ")
+    assert len(result.stderr.splitlines()) == 1
+    assert not (tmp_path / "out.csv").exists()
+
+
+def test_a_coordinate_too_large_to_process_is_a_failed_file_of_a_batch(tmp_path,
+                                                                      monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "huge.csv").write_text(_HUGE_CSV.format(v=1e308))
+    (tmp_path / "ok.csv").write_text(_HUGE_CSV.format(v=1))
+    result = run("repair", "huge.csv", "ok.csv", "-o", "out", "-j", "1")
+    assert result.exit_code == 123, result.output
+    assert result.stderr.splitlines()[0].startswith(
+        f"mocapfill: error: {_TOO_LARGE.format(v=1e308)} ")
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["ok.csv"]
+
+
+def test_a_channel_value_too_large_to_process_is_one_line_naming_the_file(tmp_path,
+                                                                         monkeypatch):
+    # Chest's translation (1.7e308 along x and y, turned 45°) overflows its position to inf,
+    # a missing sample: the coordinates pass, and the channel crashed the unit scale.
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "c.bvh").write_text(
+        "HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 6 Xposition Yposition "
+        "Zposition Zrotation Xrotation Yrotation\n  JOINT Chest\n  {\n    OFFSET 0 10 0\n"
+        "    CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n"
+        "    End Site\n    {\n      OFFSET 0 10 0\n    }\n  }\n}\nMOTION\nFrames: 5\n"
+        "Frame Time: 0.01\n0 0 0 0 0 0 0 0 0 0 0 0\n1 0 0 45 0 0 1.7e308 1.7e308 0 0 0 0\n"
+        "2 0 0 0 0 0 0 0 0 nan nan nan\n3 0 0 0 0 0 0 0 0 0 0 0\n4 0 0 0 0 0 0 0 0 0 0 0\n")
+    result = run("repair", "c.bvh", "out.bvh")
+    assert result.exit_code == 123, result.output
+    assert result.stderr.startswith("mocapfill: error: c.bvh: a channel value (1.7e+308: "
+                                    "joint Chest, frame 2) is too large to process ")
+    assert not (tmp_path / "out.bvh").exists()
+
+
 def _deny_reading(monkeypatch, path: Path) -> None:
     """Make ``path`` unreadable to this process as mode 000 makes it for a user other than
     root (the tests may run as root, who reads it anyway): access() and open() refuse."""

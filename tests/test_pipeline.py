@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocapfill.errors import NothingToRepair, ParameterError, SolverError
+from mocapfill.errors import FormatError, NothingToRepair, ParameterError, SolverError
 from mocapfill.gaps import missing_runs
 from mocapfill.motion import Motion
 from mocapfill.pipeline import RepairOptions, repair
@@ -56,17 +56,17 @@ def test_repair_is_unit_invariant():
     np.testing.assert_allclose(m, mm, rtol=1e-6, atol=1e-6 * np.abs(mm).max())
 
 
-# The jump check's squared steps still overflow there (to an infinite threshold).
-@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
 @pytest.mark.parametrize("method", ["trnn", "linear", "gaussian"])
-def test_coordinates_too_large_to_square_are_repaired_as_any_others(method):
-    # Above 1e154 the unit scale's mean square was inf and every method, linear
-    # interpolation included, failed with "returned non-finite values". A power of two
-    # scales every step exactly: the same repair, scaled, to the last bit.
+def test_coordinates_up_to_the_largest_processed_are_repaired_as_any_others(method):
+    # The unit scale centres and scales in units of a power of two near the largest value
+    # (above 1e154 its mean square was inf). A power of two scales every step exactly: the
+    # same repair, scaled, to the last bit, up to scaling.MAX_MAGNITUDE (1e100).
     _, gapped = gapped_clip()
-    factor = 2.0 ** 600                                         # 4e180
+    factor = 2.0 ** 320                                         # 2e96 (values to 1e99)
     huge = gapped.replace(positions=gapped.positions * factor)
-    options = RepairOptions(method=method)
+    # Without the jump check, whose 40 mm floor is a length, not a scale (at 2^600 its
+    # squared steps overflowed to an infinite threshold, which passed every fill).
+    options = RepairOptions(method=method, max_jump_mm=0)
     mm, scaled = repair(gapped, options), repair(huge, options)
     assert [o.status for o in scaled.gaps] == [o.status for o in mm.gaps]
     np.testing.assert_array_equal(scaled.motion.positions, mm.motion.positions * factor)
@@ -87,6 +87,25 @@ def test_the_unit_scale_reads_observed_entries_only():
         warnings.simplefilter("error")
         scale = UnitScale.fit(matrix, observed)
     np.testing.assert_array_equal(scale.centre[:, 0], matrix[:, 0])
+
+
+@pytest.mark.parametrize("method", ["trnn", "linear"])
+@pytest.mark.parametrize("value", [1e308, -1.7e308, 1e200, 2e100])
+def test_a_coordinate_too_large_to_process_is_an_error_naming_it(method, value):
+    # 1e308 crashed the unit scale (OverflowError: math range error, a traceback and exit
+    # 1); from 1.3e154 up squares overflowed (the jump check's threshold became infinite).
+    _, gapped = gapped_clip()
+    positions = gapped.positions.copy()
+    positions[10, 3, 1] = value
+    huge = gapped.replace(positions=positions, path=Path("huge.csv"))
+    with pytest.raises(FormatError, match=re.escape(
+            f"huge.csv: a coordinate ({value:.6g}: marker {gapped.labels[3]}, frame 11) is "
+            "too large to process (more than 1e+100 in magnitude")):
+        repair(huge, RepairOptions(method=method))
+    # Not a marker's (a C3D model output: never evidence, never filled): no error.
+    fillable = np.ones(gapped.n_markers, bool)
+    fillable[3] = False
+    assert repair(huge.replace(fillable=fillable), RepairOptions(method=method)).filled
 
 
 def test_marker_missing_for_the_whole_clip_is_left_missing_and_reported():
