@@ -30,6 +30,10 @@ tune_heap()
 EXIT_CHECK_FAILED = 1
 EXIT_USAGE = 2
 EXIT_FAILED = 123
+# An exception mocapfill does not expect (a bug): sysexits.h's EX_SOFTWARE. Python's own
+# exit code for it, 1, is --check's "gaps left": a script checking a batch read a crash
+# as unfilled gaps.
+EXIT_INTERNAL = 70
 
 METHOD_NAMES = ("trnn", "trnn-paper", "trnn-lowrank", "linear", "spline", "pchip", "pca",
                 "gaussian", "svt", "tsmc", "ialm", "psvt")
@@ -89,6 +93,19 @@ class _Group(click.Group):
         except OSError as exc:  # disk full, permission denied, ...
             name = f"{exc.filename}: " if exc.filename else ""
             _fail(f"{name}{exc.strerror or exc}", EXIT_FAILED)
+        except MemoryError:
+            # (A file declaring more than fits is named as it is read: formats.read.)
+            _fail("not enough memory to finish the command", EXIT_FAILED)
+        except (click.ClickException, click.exceptions.Exit, click.Abort):
+            raise
+        except Exception as exc:
+            # A bug: its traceback is what a report of it needs, so it is printed, then
+            # one line saying so, with an exit code of its own.
+            import traceback
+
+            traceback.print_exc()
+            _fail(f"internal error (a bug in mocapfill: please report it with the "
+                  f"traceback above): {type(exc).__name__}: {exc}", EXIT_INTERNAL)
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
@@ -97,7 +114,7 @@ def main() -> None:
     """Repair gaps in motion-capture marker data (C3D, TRC, CSV, BVH, ASF/AMC).
 
     Exit codes: 0 ok, 1 --check found unfilled gaps, 2 usage error, 123 a file failed,
-    130 interrupted, 143 terminated (SIGTERM), 129 hung up (SIGHUP).
+    130 interrupted, 143 terminated (SIGTERM), 129 hung up (SIGHUP), 70 internal error.
     """
 
 

@@ -1391,3 +1391,34 @@ def test_converting_a_file_stating_no_rate_to_a_new_trc_or_csv_notes_120_hz(tmp_
     result = run("convert", path, same)
     assert result.exit_code == 0 and "note:" not in result.stderr, result.output
     assert formats.read(same).rate == 0
+
+
+def test_an_unexpected_exception_is_an_internal_error_with_its_own_exit_code(
+        clip_files, monkeypatch):
+    # A bug: its traceback is kept for the report, then one line; the exit code is not
+    # 1, which --check gives for gaps left (a script read a crash as unfilled gaps).
+    from mocapfill import cli
+
+    def broken(*args, **kwargs):
+        raise ValueError("boom")
+
+    monkeypatch.setattr(cli, "_read", broken)
+    result = run("repair", clip_files / "gapped.npz", clip_files / "out.npz", "--check")
+    assert result.exit_code == cli.EXIT_INTERNAL == 70
+    assert "Traceback" in result.stderr
+    assert result.stderr.splitlines()[-1] == (
+        "mocapfill: error: internal error (a bug in mocapfill: please report it with the "
+        "traceback above): ValueError: boom")
+    assert not (clip_files / "out.npz").exists()
+
+
+def test_running_out_of_memory_is_one_line_and_a_failed_file(clip_files, monkeypatch):
+    from mocapfill import cli
+
+    def too_big(*args, **kwargs):
+        raise MemoryError
+
+    monkeypatch.setattr(cli, "_read", too_big)
+    result = run("info", clip_files / "gapped.npz")
+    assert result.exit_code == 123
+    assert result.stderr == "mocapfill: error: not enough memory to finish the command\n"
