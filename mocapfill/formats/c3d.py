@@ -28,9 +28,10 @@ carries QTM's gap signature: a float file with at least one sample stored as exa
 without a MANUFACTURER group (c3d.org Sample26) write every gap that way. Zero samples of
 model outputs (an angle or a power may be exactly 0) are never made missing.
 
-Points listed in POINT:ANGLES, FORCES, MOMENTS, POWERS, SCALARS or REACTIONS (model
-outputs; matched by label, with or without a Vicon ``Subject:`` prefix) are read but get
-``fillable=False``.
+Points listed in POINT:ANGLES, FORCES, MOMENTS, POWERS, SCALARS or REACTIONS, or in another
+list the file declares in POINT:TYPE_GROUPS (Vicon's MODELED_MARKERS: joint centres) (model
+outputs; matched by label as stored, with or without a Vicon ``Subject:`` prefix) are read
+but get ``fillable=False``.
 
 Writing
 -------
@@ -282,7 +283,8 @@ def _layout(path: Path, data: bytes) -> _Layout:
     if not np.isfinite(scale) or scale == 0:
         scale = -1.0 if not np.isfinite(header_scale) or header_scale <= 0 else header_scale
     rate = point_value("RATE", float(header_rate))
-    rate = rate if np.isfinite(rate) and rate > 0 else 0.0
+    if not (np.isfinite(rate) and rate > 0):    # as SCALE: the header's, where it has one
+        rate = float(header_rate) if np.isfinite(header_rate) and header_rate > 0 else 0.0
     word = 4 if scale < 0 else 2
     data_start = (int(uint[8]) - 1) * 512
     if not 512 <= data_start <= len(data):
@@ -349,8 +351,10 @@ def _frame_count(params: dict[str, dict[str, _Param]], processor: str,
         longer = [n for n in counts if n > 65535]
         if longer:
             return max(longer)
+        # POINT:FRAMES = 0 with a header of no frames is a clip of none, whatever padding
+        # fills the data block's last 512 bytes (read as frames of zeros before).
         frames = _numbers(point.get("FRAMES"), processor)
-        return int(frames[0]) & 0xFFFF if frames.size and frames[0] != 0 else None
+        return int(frames[0]) & 0xFFFF if frames.size and np.isfinite(frames[0]) else None
     return count
 
 
@@ -361,21 +365,30 @@ def _first_frame(params: dict[str, dict[str, _Param]], processor: str,
     return start if start is not None and start > 0xFFFF else int(header[3])
 
 
-def _labels(point: dict[str, _Param], n_points: int) -> list[str]:
-    """POINT:LABELS + LABELS2, LABELS3..., padded with POINT{n} and made unique."""
+def _stored_labels(point: dict[str, _Param], n_points: int) -> list[str]:
+    """POINT:LABELS + LABELS2, LABELS3..., as stored (empty where none), one per point."""
     names = _strings(point.get("LABELS"))
     extra = 2
     while f"LABELS{extra}" in point:
         names += _strings(point[f"LABELS{extra}"])
         extra += 1
-    return _named(names[:n_points] + [""] * max(n_points - len(names), 0))
+    return names[:n_points] + [""] * max(n_points - len(names), 0)
 
 
 def _model_outputs(point: dict[str, _Param], labels: list[str], n_points: int) -> np.ndarray:
-    """(points,) bool, True for points named in POINT:ANGLES, FORCES, ... (model outputs)."""
+    """(points,) bool, True for points named in POINT:ANGLES, FORCES, ... (model outputs).
+
+    ``labels`` as stored (:func:`_stored_labels`), not as read: a label given twice is
+    read ``LKneeAngles_2`` the second time, which no list names, and that copy of a model
+    output was filled. Also the lists of the other point types a file declares in
+    POINT:TYPE_GROUPS (pairs of list and type names: Vicon's ``MODELED_MARKERS``, the joint
+    centres a model computes, beside ``ANGLES`` ...), except a list of markers.
+    """
+    declared = {name.upper() for name in _strings(point.get("TYPE_GROUPS"))} & set(point)
+    declared -= {"LABELS", "DESCRIPTIONS", "UNITS", "MARKERS"}
     listed: set[str] = set()
     for name, param in point.items():
-        if MODEL_OUTPUT_LISTS.fullmatch(name):
+        if MODEL_OUTPUT_LISTS.fullmatch(name) or name in declared:
             listed.update(s for s in _strings(param) if s)
     listed |= {s.rsplit(":", 1)[-1] for s in listed}
     return np.array([lab in listed or lab.rsplit(":", 1)[-1] in listed
@@ -441,8 +454,9 @@ def read(path: Path, *, zero_is_missing: str = "auto") -> Motion:
         observed &= np.isfinite(coords).all(axis=2)
 
     point = layout.params.get("POINT", {})
-    labels = _labels(point, n_points)
-    fillable = ~_model_outputs(point, labels, n_points)
+    stored = _stored_labels(point, n_points)
+    labels = _named(stored)
+    fillable = ~_model_outputs(point, stored, n_points)
     if zero_is_missing == "auto":
         company = " ".join(_strings(layout.params.get("MANUFACTURER", {}).get("COMPANY")))
         # Cheap test first; zeros only if needed. An int16 word cannot hold 65535, and

@@ -161,6 +161,53 @@ def test_model_outputs_are_not_fillable_with_or_without_subject_prefix(tmp_path)
     np.testing.assert_array_equal(motion.fillable, [True, False, False, False, True])
 
 
+def test_a_repeated_model_output_label_is_a_model_output_each_time(tmp_path):
+    # Read as LKneeAngles_2 the second time, which no list names: that copy was filled.
+    labels = ["LKNE", "LKneeAngles", "RKNE", "LKneeAngles"]
+    groups = {"POINT": {"ANGLES": ["LKneeAngles"]}}
+    motion = c3d.read(write_c3d(tmp_path / "d.c3d", walk(n_points=4), labels=labels,
+                                groups=groups))
+    assert motion.labels[3] == "LKneeAngles_2"
+    np.testing.assert_array_equal(motion.fillable, [True, False, True, False])
+
+
+def test_points_of_the_types_the_file_declares_are_model_outputs(tmp_path):
+    # Vicon's POINT:TYPE_GROUPS pairs each list with its type; MODELED_MARKERS holds the
+    # joint centres a model computes (pyCGM2, c3d.org Sample00), not measured markers.
+    labels = ["LASI", "RASI", "LHJC", "LKneeAngles", "LPSI"]
+    groups = {"POINT": {"TYPE_GROUPS": ["ANGLES", "ANGLE", "MODELED_MARKERS",
+                                        "MODELED_MARKER", "MARKERS", "MARKER"],
+                        "ANGLES": ["LKneeAngles"], "MODELED_MARKERS": ["LHJC"],
+                        "MARKERS": ["LASI", "RASI"]}}
+    motion = c3d.read(write_c3d(tmp_path / "t.c3d", walk(), labels=labels, groups=groups))
+    np.testing.assert_array_equal(motion.fillable, [True, True, False, False, True])
+    # Undeclared, a list of that name is read as any other parameter.
+    del groups["POINT"]["TYPE_GROUPS"]
+    motion = c3d.read(write_c3d(tmp_path / "u.c3d", walk(), labels=labels, groups=groups))
+    np.testing.assert_array_equal(motion.fillable, [True, True, True, False, True])
+
+
+def test_a_zero_point_rate_takes_the_headers(tmp_path):
+    # As POINT:SCALE 0 does; 0 Hz ("not known") only where the header has none either.
+    path = write_c3d(tmp_path / "r.c3d", walk(n_points=1), rate=100.0,
+                     groups={"POINT": {"RATE": 0.0}})
+    assert c3d.read(path).rate == 100.0
+    path = write_c3d(tmp_path / "z.c3d", walk(n_points=1), rate=0.0)
+    assert c3d.read(path).rate == 0.0
+
+
+def test_a_clip_of_no_frames_with_a_padded_data_block_reads_no_frames(tmp_path):
+    # The header and POINT:FRAMES say 0; the data block's 512 bytes of padding were read
+    # as 10 frames of observed zeros.
+    data = bytearray(c3d_bytes(walk(n_frames=1, n_points=3),
+                               groups={"POINT": {"FRAMES": 0}}))
+    data[8:10] = (0).to_bytes(2, "little")          # header: frames 1 to 0
+    path = tmp_path / "empty.c3d"
+    path.write_bytes(bytes(data))
+    motion = c3d.read(path)
+    assert (motion.n_frames, motion.n_markers) == (0, 3)
+
+
 # --------------------------------------------------------------------------- zero gaps
 
 
@@ -679,8 +726,10 @@ def test_qualisys_zero_gaps_are_detected_in_sample26():
 
 @pytest.mark.parametrize(("relative", "n_outputs"), [
     ("c3d/btk-sample09__PlugInC3D.c3d", 32), ("c3d/btk-PiG__PiG_Motion-FlatFoot-Full.c3d", 80),
-    ("c3d/c3dorg-Sample00__Vicon__pyCGM2_lower_limb_CGM24_Walking01.c3d", 63)])
+    ("c3d/c3dorg-Sample00__Vicon__pyCGM2_lower_limb_CGM24_Walking01.c3d", 71)])
 def test_vicon_model_outputs_are_not_fillable(relative, n_outputs):
+    # pyCGM2's 71: 63 angles, forces, moments and powers, and the 8 joint centres of its
+    # MODELED_MARKERS (LHJC_CGM_2.4 ...), a list its POINT:TYPE_GROUPS declares.
     motion = c3d.read(shared_file(relative))
     outputs = [label for label, ok in zip(motion.labels, motion.fillable) if not ok]
     assert len(outputs) == n_outputs
