@@ -558,10 +558,12 @@ def _solver_options(**values) -> dict:
 @click.argument("in_path", metavar="IN", type=_InputFile())
 @click.argument("out_path", metavar="OUT", type=_OutputFile())
 @click.option("--mr", type=float, default=None,
-              help="Random missing: fraction in [0, 1) of the markers removed in every frame.")
+              help="Random missing: fraction in [0, 1) of the markers removed in every frame "
+                   "(among those seen there, never all of them).")
 @click.option("--ml", type=int, default=None,
               help="Continuous missing: number of consecutive frames removed from each of "
-                   "--markers random markers (interior runs, never touching the clip ends).")
+                   "--markers random markers (new interior gaps: never touching the clip "
+                   "ends or the clip's own gaps).")
 @click.option("--markers", "n_markers", type=int, default=None,
               help="Number of markers hit by --ml (default 10); --mr takes no --markers.")
 @click.option("--seed", type=int, default=None,
@@ -593,12 +595,16 @@ def simulate(in_path: Path, out_path: Path, mr, ml, n_markers, seed, zero_is_mis
     gapped = simulate(motion, mr=mr, ml=ml, markers=n_markers, seed=seed)
     if ml is not None:
         # --ml hits at most every candidate; say so rather than run fewer than asked quietly.
-        hittable = (channel_simulation_candidates if channels
-                    else simulation_candidates)(motion).size
+        candidates = (channel_simulation_candidates if channels
+                      else simulation_candidates)
+        hittable = candidates(motion, ml).size
         if n_markers > hittable:
             kind = "joints with channels" if channels else "markers with data"
-            notes.append(f"--markers {n_markers} but the clip has {hittable} {kind}; --ml "
-                         f"hit all {hittable}")
+            # (the run and a frame each side seen: a new gap, never one the clip had)
+            room = ("" if hittable == candidates(motion).size else
+                    f" and {ml + 2} frames seen in a row")
+            notes.append(f"--markers {n_markers} but the clip has {hittable} {kind}{room}; "
+                         f"--ml hit all {hittable}")
     _write_noting(gapped, out_path, read=(in_path, tuple(notes)))
     removed = int((motion.observed & ~gapped.observed).sum())
     # In channel space the protocols remove joints' channels, and every joint those

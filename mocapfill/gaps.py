@@ -97,16 +97,23 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
     Parameters
     ----------
     mr
-        "Random missing": in every frame a fraction ``mr`` of the markers (rounded, and
-        never all of them) is removed, chosen at random among the candidate markers.
+        "Random missing": in every frame a fraction ``mr`` of the candidate markers
+        (rounded) is removed, chosen at random among those observed in that frame, and
+        never all of these.
     ml
         "Continuous missing": ``markers`` random markers each lose ``ml`` consecutive
-        frames. The run starts at a random interior frame so it never touches the clip's
-        ends (end gaps are left unfilled by default and would not be scored).
+        observed frames: a new interior gap of exactly ``ml`` frames, seen just before and
+        after, so it never touches the clip's ends (end gaps are left unfilled by default
+        and would not be scored) nor joins a gap the clip had. Only markers with such a
+        stretch (``ml`` + 2 frames observed in a row) are hit: see
+        :func:`simulation_candidates`.
     markers
         Number of markers hit by the continuous protocol.
     seed
-        Seed of the random generator; the same seed gives the same gaps.
+        Seed of the random generator; the same seed gives the same gaps (and, on a clip
+        without gaps, the same ones as before the rules above took the clip's own gaps
+        into account: those draws are made first, unchanged, and only a run that would
+        meet a gap is drawn again).
 
     Only fillable markers with at least one observed sample are candidates, and a
     marker never loses its last observed sample.
@@ -129,10 +136,16 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
         # rounds up to n) the clip kept only the first sample of each marker.
         k = min(int(round(mr * candidates.size)), candidates.size - 1)
         if k:
-            # argsort of uniform noise: an independent random k-subset in every frame.
-            order = np.argsort(rng.random((n_frames, candidates.size)), axis=1)[:, :k]
+            # argsort of uniform noise: an independent random k-subset in every frame, of
+            # the markers seen there (the missing ones sort last: a pick among them removed
+            # nothing, and on a clip with gaps fewer samples went than asked), and never
+            # all of those.
+            seen = observed[:, candidates]
+            noise = np.where(seen, rng.random((n_frames, candidates.size)), 2.0)
+            order = np.argsort(noise, axis=1)[:, :k]
+            take = np.minimum(k, np.maximum(seen.sum(axis=1) - 1, 0))
             hit = np.zeros((n_frames, candidates.size), bool)
-            np.put_along_axis(hit, order, True, axis=1)
+            np.put_along_axis(hit, order, np.arange(k) < take[:, None], axis=1)
             observed[:, candidates] &= ~hit
     else:
         if ml < 1:
@@ -142,9 +155,9 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
         if markers < 1:
             raise ParameterError(f"markers must be positive, got {markers}")
         chosen = rng.choice(candidates, size=min(markers, candidates.size), replace=False)
-        for j in chosen:
-            start = int(rng.integers(1, n_frames - ml))
-            observed[start:start + ml, j] = False
+        starts = [int(rng.integers(1, n_frames - ml)) for _ in chosen]
+        _place_runs(observed, candidates, chosen.tolist(), starts, ml,
+                    min(markers, candidates.size), np.random.default_rng(rng.integers(2**63)))
     # Keep at least one observed sample per marker that had one.
     lost = motion.observed.any(axis=0) & ~observed.any(axis=0)
     for j in np.flatnonzero(lost):
@@ -153,24 +166,64 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
     return motion.with_positions(motion.positions, observed)
 
 
-def simulation_candidates(motion: Motion) -> np.ndarray:
+def _place_runs(observed: np.ndarray, candidates: np.ndarray, chosen: list[int],
+                starts: list[int], ml: int, wanted: int, again: np.random.Generator) -> None:
+    """Hide ``ml`` frames of each ``chosen`` marker from its drawn start (in place), where
+    that run and the frames just before and after it are observed; otherwise at a start
+    drawn ``again`` among those where they are, and a marker with none gives its place to
+    another candidate that has one, until ``wanted`` markers are hit or none is left.
+
+    The first draws are the protocol's as they always were: on a clip without gaps they
+    all stand, and the fill benchmarks' gaps do not move.
+    """
+    taken = set(chosen)
+    spare = [j for j in again.permutation(candidates).tolist() if j not in taken]
+    hit = 0
+    for j, start in [*zip(chosen, starts), *((j, None) for j in spare)]:
+        if hit >= wanted:
+            break
+        if start is None or not observed[start - 1:start + ml + 1, j].all():
+            options = _run_starts(observed[:, j], ml)
+            if not options.size:
+                continue
+            start = int(again.choice(options))
+        observed[start:start + ml, j] = False
+        hit += 1
+
+
+def _run_starts(seen: np.ndarray, ml: int) -> np.ndarray:
+    """The frames s where a run of ``ml`` frames may start in a marker's mask ``seen``:
+    s − 1 … s + ml all observed (ml + 2 in a row)."""
+    run = np.convolve(seen.astype(np.int64), np.ones(ml + 2, np.int64), "valid")
+    return np.flatnonzero(run == ml + 2) + 1
+
+
+def simulation_candidates(motion: Motion, ml: int | None = None) -> np.ndarray:
     """The markers :func:`simulate_gaps` may remove samples of.
 
     Parameters
     ----------
     motion
         The clip.
+    ml
+        With a run length, only the markers that can take a run of it (``ml`` + 2 frames
+        observed in a row): ``ml`` hits at most this many markers, whatever ``markers``
+        asks for.
 
     Returns
     -------
     np.ndarray
-        Indices of the fillable markers with at least one observed sample; ``ml`` hits at
-        most this many markers, whatever ``markers`` asks for.
+        Indices of the fillable markers with at least one observed sample (and room for
+        the run).
     """
-    return np.flatnonzero(motion.fillable & motion.observed.any(axis=0))
+    candidates = np.flatnonzero(motion.fillable & motion.observed.any(axis=0))
+    if ml is None or ml < 1:
+        return candidates
+    return np.array([j for j in candidates.tolist()
+                     if _run_starts(motion.observed[:, j], ml).size], dtype=np.int64)
 
 
-def channel_simulation_candidates(motion: Motion) -> np.ndarray:
+def channel_simulation_candidates(motion: Motion, ml: int | None = None) -> np.ndarray:
     """The joints (indices into ``motion.labels``) :func:`simulate_channel_gaps` may hit.
 
     Parameters
@@ -184,7 +237,7 @@ def channel_simulation_candidates(motion: Motion) -> np.ndarray:
         Indices of the joints that own channels and have a frame with all of them observed.
     """
     joints, _, _, _, proxy = _joint_proxy(motion)
-    return np.asarray(joints)[simulation_candidates(proxy)]
+    return np.asarray(joints)[simulation_candidates(proxy, ml)]
 
 
 def _joint_proxy(motion: Motion):

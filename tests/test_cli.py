@@ -53,6 +53,22 @@ def test_simulate_notes_when_ml_cannot_hit_as_many_markers_as_asked(clip_files, 
     assert hit == min(asked, 10)
 
 
+def test_simulate_notes_the_markers_without_room_for_an_ml_run(clip_files):
+    # Markers 0–3 of the 10 are gapped every 15 frames: no 22 frames seen in a row for a
+    # run of 20, so --ml hits the 6 others, and the note says why.
+    motion = formats.read(clip_files / "truth.npz")
+    observed = motion.observed.copy()
+    observed[::15, :4] = False
+    formats.write(motion.with_positions(motion.positions, observed), clip_files / "g.npz")
+    result = run("simulate", clip_files / "g.npz", clip_files / "s.npz", "--ml", "20",
+                 "--markers", "8", "--seed", "1")
+    assert result.exit_code == 0, result.output
+    assert (f"mocapfill: note: {clip_files / 'g.npz'}: --markers 8 but the clip has 6 markers "
+            "with data and 22 frames seen in a row; --ml hit all 6") in result.stderr
+    new = observed & ~formats.read(clip_files / "s.npz").observed
+    assert new.any(axis=0).tolist() == [False] * 4 + [True] * 6
+
+
 def test_simulate_repair_score_chain_beats_linear_interpolation(clip_files):
     d = clip_files
     assert run("simulate", d / "truth.npz", d / "sim.npz", "--ml", "40", "--seed", "1",

@@ -56,6 +56,54 @@ def test_simulation_is_reproducible_with_a_seed_and_keeps_existing_gaps():
     assert not a.observed[100:120, 0].any()
 
 
+def test_random_missing_on_a_clip_with_gaps_removes_among_the_markers_seen():
+    # 4 of 10 markers per frame; marker 0 is missing over frames 0–99 and markers 1–6 over
+    # 50–59 (3 seen there: 2 of them go, never all). A pick of a marker already missing
+    # removed nothing, and such frames lost fewer samples than asked.
+    motion = smooth_clip(200, 10)
+    motion = with_gap(motion, 0, 0, 100)
+    for j in range(1, 7):
+        motion = with_gap(motion, j, 50, 60)
+    gapped = simulate_gaps(motion, mr=0.4, seed=3)
+    removed = (motion.observed & ~gapped.observed).sum(axis=1)
+    assert (removed[100:] == 4).sum() >= 99 and (removed[:50] == 4).all()
+    assert (removed[50:60] == 2).all() and gapped.observed[50:60].any(axis=1).all()
+    assert (gapped.observed <= motion.observed).all()
+
+
+def test_continuous_missing_makes_new_gaps_of_ml_frames_away_from_the_clips_own():
+    # Marker 0 is seen only at the start and the end, so no 32 frames in a row: another
+    # marker takes its run. Markers 1–9 have end gaps and an interior gap: every run is
+    # a new interior gap of exactly 30 frames, seen before and after (merged with an end
+    # gap, its samples went unscored; with a gap, fewer samples went than asked).
+    motion = smooth_clip(300, 15)
+    motion = with_gap(motion, 0, 5, 295)
+    for j in range(1, 10):
+        motion = with_gap(with_gap(with_gap(motion, j, 0, 40), j, 260, 300), j, 120, 140)
+    for seed in range(20):
+        gapped = simulate_gaps(motion, ml=30, markers=10, seed=seed)
+        new = motion.observed & ~gapped.observed
+        assert new.sum() == 300 and new.any(axis=0).sum() == 10 and not new[:, 0].any()
+        assert (gapped.observed <= motion.observed).all()
+        for j in np.flatnonzero(new.any(axis=0)):
+            frames = np.flatnonzero(new[:, j])
+            a, b = frames[0], frames[-1] + 1
+            assert b - a == 30 and motion.observed[a - 1:b + 1, j].all()
+
+
+def test_continuous_missing_on_a_clip_without_gaps_draws_as_it_always_did():
+    # The draws of the benchmarks' cells (gap-free clips) are the protocol's first ones,
+    # unchanged: the runs of seed 7 start where the plain draws put them.
+    motion = smooth_clip(300, 15)
+    rng = np.random.default_rng(7)
+    chosen = rng.choice(np.arange(15), size=10, replace=False)
+    starts = [int(rng.integers(1, 300 - 40)) for _ in chosen]
+    expected = np.ones_like(motion.observed)
+    for j, s in zip(chosen, starts):
+        expected[s:s + 40, j] = False
+    np.testing.assert_array_equal(simulate_gaps(motion, ml=40, seed=7).observed, expected)
+
+
 @pytest.mark.parametrize("kwargs", [dict(mr=1.0), dict(mr=-0.1), dict(ml=0), dict(ml=10_000),
                                     dict(), dict(mr=0.2, ml=10)])
 def test_absurd_simulation_parameters_are_rejected(kwargs):
