@@ -360,16 +360,23 @@ class ChannelState:
         return self.observed != self.original_observed
 
 
-def positions_edited(motion: Motion, state: ChannelState) -> int:
-    """How many samples of ``motion`` disagree (observed or not) with its channel state.
+def positions_edited(motion: Motion, state: ChannelState, scale: float = 1.0) -> int:
+    """How many samples of ``motion`` disagree with its channel state (``scale``: the
+    reader's factor from file lengths to positions): observed or not, or, observed in
+    both, in value.
 
-    A skeleton writer writes channels; a Motion whose positions were filled or blanked
-    without going through the channels would lose those edits silently.
+    A skeleton writer writes channels; a Motion whose positions were filled, blanked or
+    moved (an offset, smoothing) without going through the channels would lose those
+    edits silently. The positions are compared exactly: the reader and
+    :func:`motion_with_channels` compute them from the channels as here.
     """
-    _, expected = state.points()
+    positions, expected = state.points()
     if expected.shape != motion.observed.shape:
         return int(max(expected.size, motion.observed.size))
-    return int((expected != motion.observed).sum())
+    differs = expected != motion.observed
+    both = expected & motion.observed
+    differs[both] |= (positions[both] * scale != motion.positions[both]).any(axis=1)
+    return int(differs.sum())
 
 
 _TOKEN = re.compile(r"\S+")

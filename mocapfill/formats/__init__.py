@@ -4,7 +4,11 @@ Each format module exposes ``read(path, **options) -> Motion`` and
 ``write(motion, path, **options) -> None``. A writer given a Motion whose ``source`` came
 from its own format patches a copy of the original file (only the samples whose observed
 state changed: those filled since reading, and those a ``simulate`` made missing, written
-as the format's gaps); otherwise it writes a new file. ``write`` here
+as the format's gaps); otherwise it writes a new file. Since a patch echoes everything
+else as read, ``write`` here refuses to patch a clip that differs from its file in
+anything else (frames, points, labels, first frame, rate, units, the values of samples
+observed in both: :func:`patch_problem`); ``motion.replace(source=None)`` writes a
+position format's new file instead. ``write`` here
 makes every output atomic: the module writes a temporary file beside the target, which is
 renamed over it only when complete. Readers may return a clip of no frames (a BVH with
 ``Frames: 0``, an empty NPZ) so that ``info`` can report it; ``write`` refuses one.
@@ -37,6 +41,7 @@ import numpy as np
 from ..errors import FormatError, ParameterError
 from ..metrics import MM_PER_UNIT, mm_per_unit
 from ..motion import Motion, require_motion
+from ._patch import differences
 
 # Suffix -> module. Plain dict, no global mutable plugin state.
 FORMATS: dict[str, str] = {
@@ -279,8 +284,12 @@ def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = 
     FormatError
         Naming ``path``: the suffix is unknown, the output is the input file, its folder
         does not exist, the clip has no frames (TRC, CSV and AMC cannot hold one, and in
-        any format an empty output would pass for a result), or the format's writer
-        refuses the clip.
+        any format an empty output would pass for a result), the clip was read from a
+        file of ``path``'s format but differs from it in more than the samples filled or
+        removed since reading (:func:`patch_problem`: its units, rate, first frame,
+        frames, points or labels, or the values of samples observed in the file; for a
+        new file of a position format, pass ``motion.replace(source=None)``), or the
+        format's writer refuses the clip.
     """
     if isinstance(path, Motion):
         raise TypeError("write() takes the Motion first, then the path: write(motion, path)")
@@ -291,6 +300,9 @@ def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = 
         raise FormatError(path, "refusing to overwrite the input file", exit_code=2)
     if motion.n_frames == 0:
         raise FormatError(path, "refusing to write a clip with no frames")
+    problem = patch_problem(motion, path)
+    if problem is not None:
+        raise FormatError(path, problem)
     motion, notes = for_output(motion, path)
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
@@ -321,6 +333,40 @@ def write(motion: Motion, path: str | os.PathLike, *, final_path: Path | None = 
         # user knows the output's name.
         raise FormatError(path, exc.strerror or str(exc)) from None
     return notes
+
+
+def patch_problem(motion: Motion, path: str | os.PathLike) -> str | None:
+    """Why ``motion`` cannot be written to ``path`` as the patch of its own file that the
+    format's writer makes of it (see :mod:`._patch`), or None (no patch, or one that holds
+    the clip).
+
+    A patch echoes all but the samples filled or made missing since reading, so a clip
+    that differs from its file in anything else (converted to metres, resampled,
+    relabelled, smoothed) would come out as something else: half in the old units, its
+    edits dropped. It is refused rather than written as a new file instead, as the BVH
+    and AMC writers refuse positions edited outside channel space: a new file drops what
+    only the source holds (a C3D's analog data and parameters, a TRC's header), which the
+    caller should choose to lose (``motion.replace(source=None)``) rather than find out.
+    """
+    module = format_module(path, output=True)
+    patches = getattr(module, "patches", None)
+    read = getattr(motion.source, "as_read", None)
+    if patches is None or not patches(motion) or read is None:
+        return None
+    found = differences(motion, read)
+    if not found:
+        return None
+    suffix = Path(path).suffix.lower()
+    origin = f"{motion.path}, the file it was read from" if motion.path else "its source file"
+    if suffix in SKELETON_FORMATS:
+        name = suffix[1:].upper()
+        how = (f"{name} output is written only as a patch of {name} input (positions cannot "
+               "be turned into joint angles)")
+    else:
+        how = "write a new file with motion.replace(source=None)"
+    listed = found[0] if len(found) == 1 else f"{', '.join(found[:-1])} and {found[-1]}"
+    return (f"the clip differs from {origin}, in {listed}; a patch of that file changes "
+            f"only the samples filled or removed since reading: {how}")
 
 
 @contextmanager

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..errors import FormatError, ParameterError
 from ..motion import Motion
+from ._patch import AsRead, of_motion
 
 ENCODING = "utf-8"
 ERRORS = "surrogateescape"
@@ -73,6 +74,9 @@ class TextSource:
     notes
         Readable remarks on what the reader tolerated (header counts that disagree with
         the data, ignored columns, a truncated file), for a report to show.
+    as_read
+        The clip as read, in what a patch cannot change (``formats.write`` refuses to
+        patch a clip that differs); set by :func:`read_zero_gaps`.
     """
 
     kind: str
@@ -89,6 +93,7 @@ class TextSource:
     cut_row: int = -1
     width: int = 0
     zeros_are_gaps: bool = False
+    as_read: AsRead | None = None
 
     @property
     def truncated(self) -> bool:
@@ -118,7 +123,12 @@ def read_zero_gaps(read: Callable[[Path, float | None, str | None], Motion], pat
     Toolbox)."""
     check_zero_setting(zero_is_missing)
     motion = read(Path(path), rate, units)
-    return with_zero_gaps(motion) if zero_is_missing == "on" else motion
+    if zero_is_missing == "on":
+        motion = with_zero_gaps(motion)
+    # The handle gets the clip as read (after its zeros became gaps) here, once, for the
+    # layouts that each build their Motion: one more Motion built, a few per cent of the
+    # time spent parsing the text.
+    return replace(motion, source=replace(motion.source, as_read=of_motion(motion)))
 
 
 def with_zero_gaps(motion: Motion) -> Motion:
@@ -696,6 +706,10 @@ def patched_lines(source: TextSource, motion: Motion,
     decimals
         Decimals for the filled cells; None matches each column's own precision.
     """
+    if not source.fits(motion):     # formats.write says how; a direct call is refused too
+        raise FormatError(None, "the clip no longer has the frames and markers of the file "
+                                "it was read from, so it cannot be written as a patch of it: "
+                                "write a new file with motion.replace(source=None)")
     filled = motion.observed & ~source.observed
     erased = source.observed & ~motion.observed
     frames, markers = np.nonzero(filled | erased)

@@ -83,6 +83,7 @@ from ..skeleton import (
     positions_edited,
 )
 from . import skeleton_input_needed
+from ._patch import AsRead, as_read
 from ._text import LATIN1_BOM, finite_number, frame_steps_notes, last_value_cut, latin1_label
 
 INCH_IN = {"in": 1.0, "mm": 25.4, "cm": 2.54, "m": 0.0254}
@@ -372,6 +373,9 @@ class AmcSource:
     frame_notes
         A note when the frame numbers skip or repeat (frames are read in file order as
         consecutive frames, so reports and outputs number them otherwise).
+    as_read
+        The clip as read, in what a patch cannot change (``formats.write`` refuses to
+        patch a clip that differs; the writer checks positions against the channels).
     """
 
     lines: tuple[str, ...]
@@ -386,6 +390,7 @@ class AmcSource:
     cut_line: int = -1
     unread: tuple[int, ...] = ()
     frame_notes: tuple[str, ...] = ()
+    as_read: AsRead | None = None
 
     @property
     def notes(self) -> tuple[str, ...]:
@@ -565,12 +570,14 @@ def read(path: Path, *, asf: Path | str | None = None, rate: float | None = None
                                     first_frame, subject="the frame numbers are",
                                     read_as="frames are read in file order as consecutive "
                                             "frames")
+    state = ChannelState.as_read(skeleton, values)
+    positions, observed = state.points()
+    labels = tuple(latin1_label(n) for n in skeleton.names)
     source = AmcSource(lines, asf_path, tuple(channel_names), tuple(line_columns), point_lines,
-                       tuple(ends), ChannelState.as_read(skeleton, values), angle_factor, scale,
-                       cut_line, unread, frame_notes)
-    positions, observed = source.state.points()
-    return Motion(positions * scale, observed, tuple(latin1_label(n) for n in skeleton.names),
-                  rate or 0.0, label, source=source, path=path, first_frame=first_frame)
+                       tuple(ends), state, angle_factor, scale, cut_line, unread, frame_notes,
+                       as_read(labels, rate or 0.0, label, first_frame, None, positions))
+    return Motion(positions * scale, observed, labels, rate or 0.0, label, source=source,
+                  path=path, first_frame=first_frame)
 
 
 # --------------------------------------------------------------------------- channel space
@@ -665,6 +672,12 @@ def with_channels(motion: Motion, values: np.ndarray, observed: np.ndarray) -> M
 
 # --------------------------------------------------------------------------- writing
 
+def patches(motion: Motion) -> bool:
+    """Whether :func:`write` can write ``motion``: as a patch of the AMC it was read from,
+    the only way it writes."""
+    return isinstance(motion.source, AmcSource)
+
+
 def _cell_text(source: AmcSource, frame: int, column: int) -> str:
     state = source.state
     if not state.observed[frame, column]:
@@ -686,7 +699,7 @@ def write(motion: Motion, path: Path, **_options) -> None:
         file was cut short inside that the reader did not read).
     """
     source = _source(motion, path)
-    differing = positions_edited(motion, source.state)
+    differing = positions_edited(motion, source.state, source.scale)
     if differing:
         raise FormatError(path, f"positions were changed outside channel space ({differing} "
                                 "samples disagree with the channels); AMC stores joint "

@@ -46,7 +46,7 @@ Writing
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +55,7 @@ from ..errors import FormatError
 from ..motion import Motion
 from ..skeleton import ChannelState, Skeleton, motion_with_channels, patch_tokens, positions_edited
 from . import skeleton_input_needed
+from ._patch import AsRead, as_read
 from ._text import LATIN1_BOM, finite_number, last_value_cut, latin1_label
 
 _TOKEN = re.compile(r"\S+")
@@ -80,6 +81,9 @@ class BvhSource:
         Decimals written for a filled cell.
     scale
         Factor from file lengths to ``Motion.positions``.
+    as_read
+        The clip as read, in what a patch cannot change (``formats.write`` refuses to
+        patch a clip that differs; the writer checks positions against the channels).
     """
 
     lines: tuple[str, ...]
@@ -88,6 +92,7 @@ class BvhSource:
     state: ChannelState
     decimals: int
     scale: float = 1.0
+    as_read: AsRead | None = None
 
     @property
     def hierarchy(self) -> str:
@@ -296,6 +301,7 @@ def _read_source(path: Path, scale: float) -> tuple[BvhSource, float]:
 def _motion(source: BvhSource, rate: float, units: str, path: Path | None) -> Motion:
     positions, observed = source.state.points()
     labels = tuple(latin1_label(name) for name in source.state.skeleton.names)
+    source = replace(source, as_read=as_read(labels, rate, units, 1, None, positions))
     return Motion(positions * source.scale, observed, labels, rate, units, source=source,
                   path=path)
 
@@ -366,6 +372,12 @@ def with_channels(motion: Motion, values: np.ndarray, observed: np.ndarray) -> M
 
 # --------------------------------------------------------------------------- writing
 
+def patches(motion: Motion) -> bool:
+    """Whether :func:`write` can write ``motion``: as a patch of the BVH it was read from,
+    the only way it writes."""
+    return isinstance(motion.source, BvhSource)
+
+
 def write(motion: Motion, path: Path, **_options) -> None:
     """Write a repaired BVH by patching the file the Motion was read from.
 
@@ -377,7 +389,7 @@ def write(motion: Motion, path: Path, **_options) -> None:
     """
     source = _source(motion, path)
     state = source.state
-    differing = positions_edited(motion, state)
+    differing = positions_edited(motion, state, source.scale)
     if differing:
         raise FormatError(path, f"positions were changed outside channel space ({differing} "
                                 "samples disagree with the channels); BVH stores joint "

@@ -61,6 +61,7 @@ import numpy as np
 
 from ..errors import FormatError
 from ..motion import Motion, unique_labels
+from ._patch import AsRead, as_read
 from ._text import check_zero_setting, utf8_or_latin1
 
 PROCESSORS = {84: "intel", 85: "dec", 86: "mips"}
@@ -116,6 +117,9 @@ class C3DSource:
         such a file cannot be read a second time, so the writer patches these instead.
         None for a regular file, which the writer re-reads rather than holding a large
         file's bytes for the life of the clip.
+    as_read
+        The clip as read, in what a patch cannot change (``formats.write`` refuses to
+        patch a clip that differs).
     """
 
     path: Path
@@ -132,6 +136,7 @@ class C3DSource:
     fillable: np.ndarray
     zeros_are_gaps: bool = False
     data: bytes | None = None
+    as_read: AsRead | None = None
 
     @property
     def word_size(self) -> int:
@@ -474,14 +479,17 @@ def read(path: Path, *, zero_is_missing: str = "auto") -> Motion:
     point_index = np.arange(n_points)
     for frozen in (observed, point_index):
         frozen.setflags(write=False)
+    units = _units(point)
     source = C3DSource(path=path, size=len(data), crc32=zlib.crc32(data),
                        processor=layout.processor, is_float=layout.is_float,
                        scale=layout.scale, data_start=layout.data_start,
                        frame_stride=layout.frame_stride, n_points=n_points,
                        point_index=point_index, observed=observed,
                        fillable=np.array(fillable), zeros_are_gaps=zero_is_missing == "on",
-                       data=None if path.is_file() else data)
-    return Motion(positions, observed.copy(), tuple(labels), layout.rate, _units(point),
+                       data=None if path.is_file() else data,
+                       as_read=as_read(labels, layout.rate, units, layout.first_frame,
+                                       fillable, positions, observed))
+    return Motion(positions, observed.copy(), tuple(labels), layout.rate, units,
                   fillable=fillable, source=source, path=path, first_frame=layout.first_frame)
 
 

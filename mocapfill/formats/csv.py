@@ -69,15 +69,17 @@ Units: the ``# units:`` comment; the Vicon units row or the Motive length units;
 (``"m"`` for Kinetics Toolkit files, which are in SI units). Options only fill in what the
 file does not state.
 
-Writing: a Motion read from a CSV file (its ``source`` is this module's handle, and it
-still has the file's frames and labels) is written as a patched copy of that file: only
+Writing: a Motion read from a CSV file (its ``source`` is this module's handle) is
+written as a patched copy of that file (refused where the clip differs from the file in
+anything else: ``formats.write``): only
 the cells of samples that were missing and are now observed change, and of those only
 the missing cells (a number beside a blank cell stays as it is); the cells of a sample
 made missing since reading (``simulate``) are blanked with the file's own missing token.
 A filled cell is
 printed with the largest number of decimals that column's observed cells use (the file's
 own precision; ``decimals=`` overrides), so read-back values agree with the Motion to that
-precision. Any other Motion is written as a new plain CSV:
+precision. Any other Motion (``motion.replace(source=None)`` for one read from a CSV) is
+written as a new plain CSV:
 ``# units: mm, rate: 120`` then ``Frame,Time,NAME_X,NAME_Y,NAME_Z,...``, empty cells for
 missing samples, coordinates as the shortest text that reads back exactly; a clip without
 a rate (0 Hz: a C3D with no ``POINT:RATE``, an AMC, a file stating none) is written at
@@ -239,7 +241,7 @@ def write(motion: Motion, path: Path, *, decimals: int | None = None,
 def patches(motion: Motion) -> bool:
     """Whether :func:`write` writes ``motion`` as a patched copy of the CSV it was read from."""
     source = motion.source
-    return isinstance(source, TextSource) and source.kind in KINDS and source.fits(motion)
+    return isinstance(source, TextSource) and source.kind in KINDS
 
 
 def new_file_lines(motion: Motion, decimals: int | None = None) -> list[str]:

@@ -54,15 +54,16 @@ than being read at a rate nobody stated.
 Units: ``Units``, else the ``units=`` option, else mm. ``first_frame``: the first
 ``Frame#`` value, else ``OrigDataStartFrame``, else 1.
 
-Writing: a Motion read from a TRC file (and still holding its frames and labels) is
-written as a patched copy: only the missing cells of samples that were missing and are
-now observed change (a number beside a blank cell stays as it is), printed with the
-largest number of decimals that column's observed cells use (``decimals=`` overrides);
-the cells of a sample made missing since reading (``simulate``) are blanked with the
-file's own missing token.
-Any other Motion is written in exactly the layout OpenSim's ``TRCFileAdapter`` writes:
-tab-delimited, ``PathFileType\\t4\\t(X/Y/Z)\\t<name>``, the 8 header keys and their
-values, each marker name followed by three tabs, ``X1 Y1 Z1`` ... numbered from 1, a
+Writing: a Motion read from a TRC file is written as a patched copy (refused where the
+clip differs from the file in anything else: ``formats.write``): only the missing cells
+of samples that were missing and are now observed change (a number beside a blank cell
+stays as it is), printed with the largest number of decimals that column's observed
+cells use (``decimals=`` overrides); the cells of a sample made missing since reading
+(``simulate``) are blanked with the file's own missing token.
+Any other Motion (``motion.replace(source=None)`` for one read from a TRC) is written in
+exactly the layout OpenSim's ``TRCFileAdapter`` writes: tab-delimited,
+``PathFileType\\t4\\t(X/Y/Z)\\t<name>``, the 8 header keys and their values, each marker
+name followed by three tabs, ``X1 Y1 Z1`` ... numbered from 1, a
 blank line, then rows whose cells are each followed by a tab; ``Frame#`` counts from
 ``first_frame`` (= ``OrigDataStartFrame``), time from 0, missing samples are empty
 cells, coordinates the shortest text that reads back exactly. A clip without a rate (0
@@ -265,7 +266,7 @@ def write(motion: Motion, path: Path, *, decimals: int | None = None,
 def patches(motion: Motion) -> bool:
     """Whether :func:`write` writes ``motion`` as a patched copy of the TRC it was read from."""
     source = motion.source
-    return isinstance(source, TextSource) and source.kind == "trc" and source.fits(motion)
+    return isinstance(source, TextSource) and source.kind == "trc"
 
 
 def new_file_lines(motion: Motion, name: str, decimals: int | None = None) -> list[str]:

@@ -427,11 +427,16 @@ def test_new_file_cells_hold_each_number_as_written_and_nothing_for_missing_samp
     assert fixed == ["1,0,1.00,-0.50,0.00,,,\n", "2,0.01,5.00,6.00,7.00,0.10,0.20,0.30\n"]
 
 
-def test_motion_that_no_longer_fits_its_source_is_written_as_a_new_file(tmp_path):
+def test_motion_that_no_longer_fits_its_source_is_refused_and_written_new_on_request(
+        tmp_path):
+    # A patch cannot hold it; a new file is what the caller asks for (tests/formats/
+    # test_patch.py: formats.write refuses it first, saying what differs).
     original = csvfmt.read(write_text(tmp_path, PLAIN))
     cut = original.replace(positions=original.positions[:2], observed=original.observed[:2])
     out = tmp_path / "out.csv"
-    csvfmt.write(cut, out)
+    with pytest.raises(FormatError, match=r"write a new file with motion.replace\(source="):
+        csvfmt.write(cut, out)
+    csvfmt.write(cut.replace(source=None), out)
     assert out.read_text().splitlines()[1].startswith("Frame,Time,LASI_X")
 
 
