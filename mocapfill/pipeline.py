@@ -90,6 +90,13 @@ class RepairOptions:
         the prediction had only one sample; 0 or inf disables the check. In file units
         when the units are unknown. A channel-space repair is checked on the points its
         filled channels move (see :func:`repair_channels`).
+    space
+        ``"positions"`` (default): fill the marker (or joint) positions. ``"channels"``: a
+        clip read from BVH or AMC filled in joint-channel space, the angles themselves
+        (:func:`repair_channels`), as ``mocapfill repair`` does when OUT has the input's
+        format: the only repair a BVH or AMC can be written back from (positions cannot
+        be turned into joint angles; ``write`` refuses filled positions). A clip from
+        another format is a ParameterError.
     """
 
     method: str = "trnn"

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from mocapfill import formats
-from mocapfill.errors import ParameterError
+from mocapfill.errors import FormatError, ParameterError
 from mocapfill.formats.bvh import channels as bvh_channels
 from mocapfill.gaps import find_gaps, simulate_channel_gaps
 from mocapfill.pipeline import RepairOptions, repair
@@ -129,3 +129,26 @@ def test_a_point_whose_gap_is_left_gets_no_fill_from_its_channels(tmp_path, runs
         gap = outcome.gap
         filled = result.motion.observed[gap.start:gap.stop, gap.marker]
         assert filled.all() if outcome.status == "filled" else not filled.any(), outcome
+
+
+@pytest.mark.parametrize("name", ["cmu/10_01.bvh", "cmu/10_01.amc"])
+def test_a_position_repair_written_to_its_skeleton_format_names_the_public_way(tmp_path,
+                                                                               name):
+    # The README's recipe, write(repair(read(x.bvh)).motion, y.bvh), pointed at
+    # bvh.with_channels, an internal function.
+    source = shared_file(name)
+    if source.suffix == ".amc":
+        (tmp_path / "10.asf").write_bytes(shared_file("cmu/10.asf").read_bytes())
+    gapped_path = tmp_path / f"gapped{source.suffix}"
+    formats.write(simulate_channel_gaps(formats.read(source), ml=30, markers=4, seed=2),
+                  gapped_path)
+    gapped = formats.read(gapped_path)
+    out = tmp_path / f"out{source.suffix}"
+    with pytest.raises(FormatError) as caught:
+        formats.write(repair(gapped, RepairOptions(method="linear")).motion, out)
+    message = str(caught.value)
+    assert "mocapfill.repair(motion, RepairOptions(space='channels'))" in message
+    assert "with_channels" not in message and "\n" not in message
+    formats.write(repair(gapped, RepairOptions(method="linear", space="channels")).motion,
+                  out)
+    assert formats.read(out).observed.all()

@@ -703,7 +703,8 @@ def write(motion: Motion, path: Path, **_options) -> None:
     if differing:
         raise FormatError(path, f"positions were changed outside channel space ({differing} "
                                 "samples disagree with the channels); AMC stores joint "
-                                "angles: repair through acclaim.with_channels")
+                                "angles, which a repair fills with mocapfill.repair(motion, "
+                                "RepairOptions(space='channels')), as the command line does")
     lines = list(source.lines)
     added: dict[int, list[str]] = {}
     changed = source.state.changed_cells()

@@ -393,7 +393,8 @@ def write(motion: Motion, path: Path, **_options) -> None:
     if differing:
         raise FormatError(path, f"positions were changed outside channel space ({differing} "
                                 "samples disagree with the channels); BVH stores joint "
-                                "angles: repair through bvh.with_channels")
+                                "angles, which a repair fills with mocapfill.repair(motion, "
+                                "RepairOptions(space='channels')), as the command line does")
     lines = list(source.lines)
     changed = state.changed_cells()
     for frame in np.flatnonzero(changed.any(axis=1)):
