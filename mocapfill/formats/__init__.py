@@ -26,7 +26,11 @@ write back into the original motion lines.
 """
 from __future__ import annotations
 
+import difflib
 import importlib
+import inspect
+import math
+import numbers
 import os
 import shutil
 import stat
@@ -107,11 +111,30 @@ def format_module(path: str | os.PathLike, *, output: bool = False) -> ModuleTyp
 
 
 def read(path: str | os.PathLike, **options) -> Motion:
-    """Read a motion file of any known format."""
+    """Read a motion file of any known format.
+
+    ``options`` are those of the format's reader: ``rate`` (Hz; every format, used only
+    where the file states none: an AMC, a C3D without ``POINT:RATE``, a TRC or CSV
+    without a rate or times, an NPZ without ``rate``; a BVH always states one),
+    ``units`` (CSV, TRC: where the file states none; AMC: convert to it; BVH: its label),
+    ``zero_is_missing`` (C3D, TRC, CSV), ``scale`` (BVH), ``asf`` (AMC).
+
+    Raises
+    ------
+    TypeError
+        An option the format's reader does not take (a misspelt one was ignored, or
+        reported as the file's fault), before the file is opened.
+    ParameterError
+        ``rate`` that is not a positive, finite number, or a bad ``zero_is_missing``.
+    FormatError
+        Naming ``path``: no such file, a folder, an unknown suffix, or a file that cannot
+        be read or parsed.
+    """
     path = Path(path)
     if path.is_dir():   # before its suffix: a folder has none, or not a format's
         raise FormatError(path, "is a folder, not a file", exit_code=2)
     module = format_module(path)
+    check_read_options(module, path.suffix.lower(), options)
     if not path.exists():
         raise FormatError(path, "no such file", exit_code=2)
     try:
@@ -133,6 +156,31 @@ def read(path: str | os.PathLike, **options) -> Motion:
             EOFError) as exc:
         # A parser tripping on a corrupt file: report it as the file's fault, one line.
         raise FormatError(path, f"cannot parse ({type(exc).__name__}: {exc})") from None
+
+
+def check_read_options(module: ModuleType, suffix: str, options: dict) -> None:
+    """Raise TypeError for an option ``module``'s reader does not take, naming it and the
+    format, and ParameterError for a ``rate`` that is not a positive, finite number.
+
+    Checked here, before the file is opened: the readers used to take any keyword and
+    ignore it (``zero_is_mising="on"`` read zeros as data), or a TypeError raised inside
+    one was reported as the file's fault ("85_02.c3d: cannot parse (TypeError: read()
+    got an unexpected keyword argument 'rate')"). A misspelt option is a programming
+    error, as Python's own TypeError for one is, not a problem with the file.
+    """
+    takes = [name for name, parameter in inspect.signature(module.read).parameters.items()
+             if parameter.kind is inspect.Parameter.KEYWORD_ONLY]
+    for name in options:
+        if name not in takes:
+            close = difflib.get_close_matches(name, takes, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise TypeError(f"read() got an unexpected keyword argument {name!r} for a "
+                            f"{suffix} file (its reader takes {', '.join(takes)}){hint}")
+    rate = options.get("rate")
+    if rate is not None and not (isinstance(rate, numbers.Real) and not isinstance(rate, bool)
+                                 and math.isfinite(rate) and rate > 0):
+        # A reader took -1 or nan for the clip's rate (an AMC states none).
+        raise ParameterError(f"rate must be a positive, finite number of Hz, got {rate!r}")
 
 
 def _check_readable(path: Path) -> None:

@@ -527,7 +527,7 @@ def _units(asf: _Asf, units: str | None) -> tuple[float, str]:
 
 
 def read(path: Path, *, asf: Path | str | None = None, rate: float | None = None,
-         units: str | None = None, **_options) -> Motion:
+         units: str | None = None) -> Motion:
     """Read an AMC motion and its ASF skeleton; points are root and bone ends from FK.
 
     Parameters

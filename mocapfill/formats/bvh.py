@@ -306,7 +306,8 @@ def _motion(source: BvhSource, rate: float, units: str, path: Path | None) -> Mo
                   path=path)
 
 
-def read(path: Path, *, units: str = "unknown", scale: float = 1.0, **_options) -> Motion:
+def read(path: Path, *, units: str = "unknown", scale: float = 1.0,
+         rate: float | None = None) -> Motion:
     """Read a BVH file; points are joint and End Site positions from FK.
 
     Parameters
@@ -317,6 +318,11 @@ def read(path: Path, *, units: str = "unknown", scale: float = 1.0, **_options) 
         Label of the length unit (BVH files do not state one).
     scale
         Factor applied to positions (not to the channels or the written file).
+    rate
+        Not used: a BVH states its rate (``Frame Time``; a file whose ``Frame Time`` is
+        not a positive number is refused). Taken, as every reader takes it, so that one
+        call reads a clip in any format (``rate=120`` for CMU clips, whose AMCs state
+        none).
 
     Returns
     -------

@@ -416,7 +416,7 @@ def _units(point: dict[str, _Param]) -> str:
     return raw
 
 
-def read(path: Path, *, zero_is_missing: str = "auto") -> Motion:
+def read(path: Path, *, zero_is_missing: str = "auto", rate: float | None = None) -> Motion:
     """Read the marker trajectories of a C3D file.
 
     Parameters
@@ -426,6 +426,9 @@ def read(path: Path, *, zero_is_missing: str = "auto") -> Motion:
     zero_is_missing
         ``"on"``: samples stored as exactly (0, 0, 0) are also missing; ``"off"``: never;
         ``"auto"``: on for Qualisys files (see the module docstring).
+    rate
+        Frame rate in Hz, used only when the file states none (``POINT:RATE`` and the
+        header's rate 0 or absent; default None: such a file reads as 0 Hz, not known).
 
     Returns
     -------
@@ -480,6 +483,7 @@ def read(path: Path, *, zero_is_missing: str = "auto") -> Motion:
     for frozen in (observed, point_index):
         frozen.setflags(write=False)
     units = _units(point)
+    rate = layout.rate or rate or 0.0       # the option only where the file states none
     source = C3DSource(path=path, size=len(data), crc32=zlib.crc32(data),
                        processor=layout.processor, is_float=layout.is_float,
                        scale=layout.scale, data_start=layout.data_start,
@@ -487,9 +491,9 @@ def read(path: Path, *, zero_is_missing: str = "auto") -> Motion:
                        point_index=point_index, observed=observed,
                        fillable=np.array(fillable), zeros_are_gaps=zero_is_missing == "on",
                        data=None if path.is_file() else data,
-                       as_read=as_read(labels, layout.rate, units, layout.first_frame,
+                       as_read=as_read(labels, rate, units, layout.first_frame,
                                        fillable, positions, observed))
-    return Motion(positions, observed.copy(), tuple(labels), layout.rate, units,
+    return Motion(positions, observed.copy(), tuple(labels), rate, units,
                   fillable=fillable, source=source, path=path, first_frame=layout.first_frame)
 
 

@@ -149,7 +149,7 @@ _COMMENT_ITEM = re.compile(r"(\w+)\s*[:=]\s*([^,;]+)")
 
 
 def read(path: Path, *, rate: float | None = None, units: str | None = None,
-         zero_is_missing: str = "auto", **_ignored: object) -> Motion:
+         zero_is_missing: str = "auto") -> Motion:
     """Read a marker CSV file of any supported layout.
 
     Parameters
@@ -165,8 +165,6 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
     zero_is_missing
         ``"on"``: samples at exactly x = y = z = 0 are missing too; ``"auto"`` (no text
         file says it stores gaps so) and ``"off"`` read them as data.
-    **_ignored
-        Options meant for other formats.
 
     Returns
     -------

@@ -4,8 +4,8 @@ markers: C3D model outputs). Missing samples are stored as NaN and as False in
 ``observed``. Only ``positions`` is required; labels and units may be stored as bytes.
 
 ``rate`` 0 means "not known", as for a C3D without ``POINT:RATE``, and so does an archive
-without ``rate`` (as a CSV or TRC stating none); a negative or non-finite rate is a
-FormatError."""
+without ``rate`` (as a CSV or TRC stating none): the ``rate=`` option is used then; a
+negative or non-finite rate is a FormatError."""
 from __future__ import annotations
 
 import zipfile
@@ -30,7 +30,8 @@ def _scalar(data, name: str, path: Path) -> float:
     return float(values[0])
 
 
-def read(path: Path, **_options) -> Motion:
+def read(path: Path, *, rate: float | None = None) -> Motion:
+    """Read an archive; ``rate`` (Hz) is used only when it stores none (or 0, not known)."""
     if not zipfile.is_zipfile(path):
         raise FormatError(path, "not an .npz archive (no zip signature)")
     try:
@@ -43,7 +44,7 @@ def read(path: Path, **_options) -> Motion:
                         else np.isfinite(positions).all(axis=2))
             labels = ([_text(s) for s in np.asarray(data["labels"]).reshape(-1)]
                       if "labels" in data else None)
-            rate = _scalar(data, "rate", path) if "rate" in data else 0.0
+            stored = _scalar(data, "rate", path) if "rate" in data else 0.0
             units = (_text(np.asarray(data["units"]).reshape(-1)[0]) if "units" in data
                      else "mm")
             first_frame = int(_scalar(data, "first_frame", path)) \
@@ -62,9 +63,10 @@ def read(path: Path, **_options) -> Motion:
         raise FormatError(path, f"positions must be (frames, markers, 3), got {positions.shape}")
     if observed.shape != positions.shape[:2]:
         raise FormatError(path, f"observed must be {positions.shape[:2]}, got {observed.shape}")
-    if not (np.isfinite(rate) and rate >= 0):
-        raise FormatError(path, f"rate is {rate}, not a frame rate (a positive, finite number "
+    if not (np.isfinite(stored) and stored >= 0):
+        raise FormatError(path, f"rate is {stored}, not a frame rate (a positive, finite number "
                                 "of Hz, or 0 when not known)")
+    rate = stored or rate or 0.0
     if labels is None:
         labels = [f"M{j + 1:03d}" for j in range(positions.shape[1])]
     if len(labels) != positions.shape[1]:

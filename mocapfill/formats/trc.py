@@ -128,7 +128,7 @@ _HEADER_BREAKS = re.compile("[\t\n\v\f\r\x1c-\x1e\x85\u2028\u2029]+")
 
 
 def read(path: Path, *, rate: float | None = None, units: str | None = None,
-         zero_is_missing: str = "auto", **_ignored: object) -> Motion:
+         zero_is_missing: str = "auto") -> Motion:
     """Read a TRC file.
 
     Parameters
@@ -143,8 +143,6 @@ def read(path: Path, *, rate: float | None = None, units: str | None = None,
     zero_is_missing
         ``"on"``: samples at exactly x = y = z = 0 are missing too (blank or ``NaN``
         cells always are); ``"auto"`` and ``"off"`` read them as data.
-    **_ignored
-        Options meant for other formats.
 
     Returns
     -------
