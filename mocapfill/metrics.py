@@ -60,7 +60,30 @@ def rmse(truth: np.ndarray, estimate: np.ndarray, mask: np.ndarray) -> tuple[flo
 
     Arrays are (frames, markers, 3). The paper's RMSE is ‖(X − X̂)_{Ω^c}‖_F/√|Ω^c| over
     coordinates; the 3-D error is the RMS of the Euclidean marker error, √3 times larger.
+
+    Raises
+    ------
+    TypeError
+        A Motion for an array (:func:`score` takes clips), or a mask that is not bool.
+    ValueError
+        Arrays that are not (frames, markers, 3) of one shape, or a mask of another shape.
     """
+    for array, role in ((truth, "truth"), (estimate, "estimate")):
+        if isinstance(array, Motion):
+            raise TypeError(f"rmse() takes arrays, got a Motion as {role}: score() takes "
+                            "clips, or pass their .positions")
+    truth, estimate, mask = np.asarray(truth), np.asarray(estimate), np.asarray(mask)
+    if truth.ndim != 3 or truth.shape[2] != 3 or estimate.shape != truth.shape:
+        raise ValueError(f"rmse() takes truth and estimate of one (frames, markers, 3) "
+                         f"shape, got {truth.shape} and {estimate.shape}")
+    # Checked, not converted: a 0/1 mask indexed frames 0 and 1 (a wrong RMSE), and a
+    # (frames, markers, 3) one such as np.isnan(positions) picked coordinates, not
+    # samples (the 3-D error then equal to the RMSE).
+    if mask.dtype != bool:
+        raise TypeError(f"rmse() takes a bool mask, got {mask.dtype}")
+    if mask.shape != truth.shape[:2]:
+        raise ValueError(f"rmse() takes a (frames, markers) mask, {truth.shape[:2]}, got "
+                         f"{mask.shape}: one entry per sample")
     diff = (estimate - truth)[mask]
     if diff.size == 0:
         return float("nan"), float("nan")
