@@ -131,20 +131,27 @@ class RepairOptions:
             raise ParameterError(f"space must be one of {', '.join(SPACES)}, got {self.space!r}")
         # Fail early on an unknown method, or an option the method does not take (batches
         # would otherwise fail file after file).
-        parameters = option_parameters(get_method(self.method))
-        unknown = sorted(set(self.solver_options) - set(parameters))
-        if unknown:
-            given = ", ".join(f"--{name.replace('_', '-')}" for name in unknown)
-            raise ParameterError(f"{given} does not apply to method {self.method!r}")
-        _check_kinds(self.solver_options, parameters)
-        check_solver_options(self.solver_options)
-        # None for any option is the method's default, as on the command line: a solver
-        # that takes None for a value has None as its default (tau_factor=None was a
-        # TypeError in the solver); a count given as a whole float (10.0: from JSON,
-        # numpy) is that count (range(10.0) is a TypeError).
-        given = {name: int(value) if name in _COUNTS else value
-                 for name, value in self.solver_options.items() if value is not None}
-        object.__setattr__(self, "solver_options", given)
+        object.__setattr__(self, "solver_options",
+                           checked_solver_options(self.method, self.solver_options))
+
+
+def checked_solver_options(method: str, options: dict) -> dict:
+    """``options`` for ``method`` as the solver takes them, or a ParameterError for an
+    unknown method, an option it does not take, a value not of the option's kind or out
+    of its range (RepairOptions, complete_matrix)."""
+    parameters = option_parameters(get_method(method))
+    unknown = sorted(set(options) - set(parameters))
+    if unknown:
+        given = ", ".join(f"--{name.replace('_', '-')}" for name in unknown)
+        raise ParameterError(f"{given} does not apply to method {method!r}")
+    _check_kinds(options, parameters)
+    check_solver_options(options)
+    # None for any option is the method's default, as on the command line: a solver
+    # that takes None for a value has None as its default (tau_factor=None was a
+    # TypeError in the solver); a count given as a whole float (10.0: from JSON,
+    # numpy) is that count (range(10.0) is a TypeError).
+    return {name: int(value) if name in _COUNTS else value
+            for name, value in options.items() if value is not None}
 
 
 # The ranges of the options the command line offers (--rank ... --max-iter), whatever the
@@ -335,9 +342,6 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
     With ``borrowed`` (a list, possibly empty) the method's ``windowed`` form is called
     with those validations and (fill, validation) is returned.
     """
-    if "centre" in solver_options:
-        raise ParameterError("'centre' is not an option: the rows' centres are the unit "
-                             "scale's, set here")
     scale = UnitScale.fit(matrix, observed)
     scaled = scale.forward(np.where(observed, matrix, 0.0))
     fn = get_method(method)
@@ -537,8 +541,19 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
     fill (a marker missing through a whole window and the overlaps around it) stays NaN.
     Observed entries of the result equal ``matrix`` exactly. With ``overwrite`` the fills
     are written into ``matrix`` itself (its missing entries), which is returned: no second
-    clip-sized array.
+    clip-sized array. ``solver_options`` are the method's, refused (ParameterError) as
+    :class:`RepairOptions` refuses them: unknown to the method, or out of range.
     """
+    if "centre" in solver_options:
+        raise ParameterError("'centre' is not an option: the rows' centres are the unit "
+                             "scale's, set here")
+    # Checked as RepairOptions checks them: a misspelt option (rnak=3) gave the default's
+    # fill, a negative tol or lam was taken. ``rate`` is the clip's, which the repair
+    # hands every method (those with no use for it take it in ``**options``), not one of
+    # the method's own.
+    own = {name: value for name, value in solver_options.items() if name != "rate"}
+    solver_options = {**{name: value for name, value in solver_options.items()
+                         if name == "rate"}, **checked_solver_options(method, own)}
     n = matrix.shape[1]
     out = matrix if overwrite else np.array(matrix, dtype=np.float64)
     if not window_frames or n <= window_frames:

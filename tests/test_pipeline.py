@@ -794,3 +794,31 @@ def test_the_rows_centres_are_the_pipelines_not_an_option(method):
     observed[0:3, 40:50] = False
     with pytest.raises(ParameterError, match="'centre' is not an option"):
         complete_matrix(matrix, observed, method, centre=np.zeros(6))
+
+
+@pytest.mark.parametrize(("options", "message"), [
+    ({"rnak": 3}, "--rnak does not apply to method 'trnn-lowrank'"),
+    ({"tol": -1.0}, "--tol must be > 0, got -1.0"),
+    ({"tol": float("nan")}, "--tol must be finite, got nan"),
+    ({"lam": -1.0}, "--lam must be > 0, got -1.0"),
+    ({"max_iter": 2.5}, "--max-iter must be a whole number, got 2.5"),
+    ({"rank": "3"}, "--rank must be a number, got '3'"),
+])
+def test_complete_matrix_refuses_the_options_repair_options_refuses(options, message):
+    # A misspelt option gave the default's fill, a negative tol or lam was taken.
+    from mocapfill.pipeline import complete_matrix
+
+    matrix, observed = gapped_clip()[1].matrix()
+    with pytest.raises(ParameterError, match=re.escape(message)):
+        RepairOptions(method="trnn-lowrank", solver_options=options)
+    with pytest.raises(ParameterError, match=re.escape(message)):
+        complete_matrix(matrix, observed, "trnn-lowrank", **options)
+
+
+def test_complete_matrix_takes_counts_as_whole_floats_and_none_as_the_default():
+    from mocapfill.pipeline import complete_matrix
+
+    matrix, observed = gapped_clip()[1].matrix()
+    given = complete_matrix(matrix, observed, "trnn-lowrank", rank=3.0, tol=None, rate=120.0)
+    np.testing.assert_array_equal(given, complete_matrix(matrix, observed, "trnn-lowrank",
+                                                         rank=3))
