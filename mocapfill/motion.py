@@ -6,8 +6,10 @@ mocapfill. A marker sample is observed or missing as a whole (all three coordina
 from __future__ import annotations
 
 import fnmatch
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from numbers import Integral, Real
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -29,6 +31,15 @@ def finite_samples(positions: np.ndarray) -> np.ndarray:
     return finite[..., 0] & finite[..., 1] & finite[..., 2]
 
 
+def whole_number(value: object) -> bool:
+    """Whether a count given from Python is a whole number: 40, numpy's int64(40) or
+    40.0, not 2.5, nan, inf, True or "40"."""
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    return isinstance(value, Integral) or (isinstance(value, Real)
+                                           and float(value).is_integer())
+
+
 @dataclass(frozen=True, eq=False)
 class Motion:
     """Marker trajectories of one clip.
@@ -42,7 +53,7 @@ class Motion:
     labels
         Marker names, one per marker.
     rate
-        Frame rate in Hz.
+        Frame rate in Hz: a finite number ≥ 0, 0 when not known.
     units
         Length unit of ``positions`` as the file states it ("mm", "m", ...).
     fillable
@@ -56,7 +67,14 @@ class Motion:
     path
         The file the clip was read from, if any.
     first_frame
-        Frame number of the first frame as the file counts it (1 in most formats).
+        Frame number of the first frame as the file counts it (1 in most formats): a whole
+        number (numpy's integers and whole floats such as 3.0 are taken as the int).
+
+    Raises
+    ------
+    ValueError
+        Arrays of the wrong shapes, labels not one per marker, a rate or first frame that
+        is not one.
     """
 
     positions: np.ndarray
@@ -89,7 +107,16 @@ class Motion:
         object.__setattr__(self, "observed", observed)
         object.__setattr__(self, "labels", tuple(str(label) for label in self.labels))
         object.__setattr__(self, "fillable", fillable)
-        object.__setattr__(self, "rate", float(self.rate))
+        # Checked here, not by each writer: a rate of -5, nan or inf was written to an NPZ
+        # that read then refused, and a first frame of 2.5 crashed the C3D writer.
+        rate = float(self.rate)
+        if not (math.isfinite(rate) and rate >= 0):
+            raise ValueError(f"rate must be a frame rate (a positive, finite number of Hz, "
+                             f"or 0 when not known), got {self.rate!r}")
+        if not whole_number(self.first_frame):
+            raise ValueError(f"first_frame must be a whole number, got {self.first_frame!r}")
+        object.__setattr__(self, "rate", rate)
+        object.__setattr__(self, "first_frame", int(self.first_frame))
 
     @property
     def n_frames(self) -> int:

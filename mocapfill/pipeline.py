@@ -27,6 +27,7 @@ from .motion import (
     label_matches,
     matches_nothing,
     require_motion,
+    whole_number,
 )
 from .scaling import MAX_MAGNITUDE, UnitScale, outsized
 from .solvers import get_method, option_parameters
@@ -119,7 +120,7 @@ class RepairOptions:
             # A count, as --rank and --max-iter are: 2.5 acted as 2 (a gap's length in
             # frames is whole), nan and inf as no limit, a string as a TypeError.
             gap_frames = self.max_gap_frames
-            if not _whole_number(gap_frames):
+            if not whole_number(gap_frames):
                 raise ParameterError(f"max gap must be a whole number of frames, got "
                                      f"{gap_frames!r}")
             if gap_frames < 0:
@@ -188,13 +189,6 @@ def _check_kinds(options: dict, parameters: dict) -> None:
             raise ParameterError(f"--{name.replace('_', '-')} must be {kind}, got {value!r}")
 
 
-def _whole_number(value: object) -> bool:
-    """Whether a count given from Python is a whole number: 40 or 40.0, not 2.5, nan,
-    inf, True or "40"."""
-    return (not isinstance(value, bool) and isinstance(value, Real)
-            and float(value).is_integer())
-
-
 def check_solver_options(options: dict) -> None:
     """A ParameterError for an option that is not finite, or a value of rank, lam, mu,
     rho, eta0, tol or max_iter out of its range (the other options, and None, pass)."""
@@ -207,7 +201,7 @@ def check_solver_options(options: dict) -> None:
 
     for name in _COUNTS:
         value = options.get(name)
-        if value is not None and not _whole_number(value):
+        if value is not None and not whole_number(value):
             refuse(name, "a whole number")
     for name in _POSITIVE:
         if options.get(name) is not None and not options[name] > 0:

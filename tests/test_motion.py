@@ -1,3 +1,5 @@
+import re
+
 import numpy as np
 import pytest
 
@@ -81,3 +83,37 @@ def test_write_with_its_arguments_swapped_says_so(tmp_path):
     with pytest.raises(TypeError, match=r"write\(motion, path\)"):
         mocapfill.write(tmp_path / "out.npz", smooth_clip(20, 3))
     assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("rate", [-5.0, float("nan"), float("inf")])
+def test_a_rate_that_is_not_a_frame_rate_is_refused(rate, tmp_path):
+    # Such a clip was written to an NPZ that read then refused.
+    clip = smooth_clip(20, 2)
+    with pytest.raises(ValueError, match=r"rate must be a frame rate \(a positive, finite "
+                                         r"number of Hz, or 0 when not known\), got"):
+        Motion(clip.positions, clip.observed, clip.labels, rate)
+    with pytest.raises(ValueError, match="rate must be a frame rate"):
+        clip.replace(rate=rate)
+    assert Motion(clip.positions, clip.observed, clip.labels, 0).rate == 0.0   # not known
+    # A reader's rate= option is refused as the option it is, not as the file's fault.
+    (tmp_path / "no-rate.csv").write_text("A_X,A_Y,A_Z\n1,2,3\n4,5,6\n")
+    with pytest.raises(mocapfill.ParameterError, match="rate must be a positive, finite"):
+        mocapfill.read(tmp_path / "no-rate.csv", rate=rate)
+
+
+@pytest.mark.parametrize("first_frame", [2.5, float("nan"), True, "3", None])
+def test_a_first_frame_that_is_not_a_whole_number_is_refused(first_frame):
+    # 2.5 crashed the C3D writer with a TypeError.
+    clip = smooth_clip(20, 2)
+    with pytest.raises(ValueError, match=f"first_frame must be a whole number, got "
+                                         f"{re.escape(repr(first_frame))}"):
+        clip.replace(first_frame=first_frame)
+
+
+def test_a_first_frame_given_as_a_numpy_integer_or_whole_float_is_that_int(tmp_path):
+    clip = smooth_clip(20, 2)
+    for given in (np.int64(3), 3.0):
+        moved = clip.replace(first_frame=given)
+        assert moved.first_frame == 3 and type(moved.first_frame) is int
+    mocapfill.write(moved, tmp_path / "moved.c3d")
+    assert mocapfill.read(tmp_path / "moved.c3d").first_frame == 3
