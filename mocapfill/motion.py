@@ -70,6 +70,9 @@ class Motion:
         Frame number of the first frame as the file counts it (1 in most formats): a whole
         number (numpy's integers and whole floats such as 3.0 are taken as the int).
 
+    ``positions``, ``observed`` and ``fillable`` are read-only arrays the Motion owns (a
+    change is a new Motion: :meth:`replace`, :meth:`with_positions`; copy them to edit).
+
     Raises
     ------
     ValueError
@@ -100,9 +103,15 @@ class Motion:
         observed = observed & finite_samples(positions)
         positions = np.where(observed[:, :, None], positions, np.nan)
         fillable = (np.ones(positions.shape[1], bool) if self.fillable is None
-                    else np.asarray(self.fillable, dtype=bool))
+                    else np.array(self.fillable, dtype=bool))
         if fillable.shape != (positions.shape[1],):
             raise ValueError("fillable must have one entry per marker")
+        # Read-only, as the clip is frozen: positions set to NaN in place kept their
+        # samples observed (a repair then failed with a SolverError), and observed set
+        # False in place left the values. The three arrays are the Motion's own (made
+        # above), so no caller's array is locked.
+        for array in (positions, observed, fillable):
+            array.flags.writeable = False
         object.__setattr__(self, "positions", positions)
         object.__setattr__(self, "observed", observed)
         object.__setattr__(self, "labels", tuple(str(label) for label in self.labels))

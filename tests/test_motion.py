@@ -117,3 +117,22 @@ def test_a_first_frame_given_as_a_numpy_integer_or_whole_float_is_that_int(tmp_p
         assert moved.first_frame == 3 and type(moved.first_frame) is int
     mocapfill.write(moved, tmp_path / "moved.c3d")
     assert mocapfill.read(tmp_path / "moved.c3d").first_frame == 3
+
+
+def test_a_motions_arrays_are_read_only_and_its_own():
+    # A sample set to NaN in place stayed observed (a repair then failed with a misleading
+    # SolverError); the flag is on the Motion's own arrays, never on the caller's.
+    positions = np.zeros((4, 2, 3))
+    observed = np.ones((4, 2), bool)
+    fillable = np.ones(2, bool)
+    clip = Motion(positions, observed, ("A", "B"), 100.0, fillable=fillable)
+    for array in (clip.positions, clip.observed, clip.fillable):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 0
+    for array in (positions, observed, fillable):
+        assert array.flags.writeable
+        array[0] = 0
+    assert clip.observed.all() and clip.fillable.all()
+    edited = clip.positions.copy()      # an edit is a new clip
+    edited[1, 0] = np.nan
+    assert not clip.with_positions(edited, clip.observed).observed[1, 0]
