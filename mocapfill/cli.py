@@ -592,7 +592,8 @@ def simulate(in_path: Path, out_path: Path, mr, ml, n_markers, seed, zero_is_mis
     # otherwise the protocols remove marker (or joint position) samples.
     channels = formats.same_skeleton_format(in_path, out_path)
     simulate = simulate_channel_gaps if channels else simulate_gaps
-    gapped = simulate(motion, mr=mr, ml=ml, markers=n_markers, seed=seed)
+    gapped = simulate(motion, mr=mr, ml=ml, markers=n_markers if ml is not None else None,
+                      seed=seed)
     if ml is not None:
         # --ml hits at most every candidate; say so rather than run fewer than asked quietly.
         candidates = (channel_simulation_candidates if channels

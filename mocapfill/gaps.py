@@ -2,11 +2,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from numbers import Real
 
 import numpy as np
 
 from .errors import NothingToRepair, ParameterError, named
-from .motion import Motion, require_motion
+from .motion import Motion, require_motion, whole_number
 
 
 @dataclass(frozen=True)
@@ -91,7 +92,7 @@ def summarise(motion: Motion) -> list[MarkerSummary]:
 
 
 def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = None,
-                  markers: int = 10, seed: int | None = None) -> Motion:
+                  markers: int | None = None, seed: int | None = None) -> Motion:
     """Remove samples with one of the paper's two protocols, on top of existing gaps.
 
     Parameters
@@ -108,12 +109,16 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
         stretch (``ml`` + 2 frames observed in a row) are hit: see
         :func:`simulation_candidates`.
     markers
-        Number of markers hit by the continuous protocol.
+        Number of markers hit by the continuous protocol (default 10); not with ``mr``.
     seed
         Seed of the random generator; the same seed gives the same gaps (and, on a clip
         without gaps, the same ones as before the rules above took the clip's own gaps
         into account: those draws are made first, unchanged, and only a run that would
         meet a gap is drawn again).
+
+    ``ml``, ``markers`` and ``seed`` are whole numbers (numpy's integers and whole floats
+    such as 40.0 are taken as the int), ``mr`` a number; anything else, or a count out of
+    its range, is a ParameterError, as on the command line.
 
     Only fillable markers with at least one observed sample are candidates, and a
     marker never loses its last observed sample.
@@ -121,6 +126,19 @@ def simulate_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = N
     require_motion(motion, "simulate_gaps")
     if (mr is None) == (ml is None):
         raise ParameterError("give exactly one of mr (random missing) or ml (continuous missing)")
+    # The command line's rules, checked before anything is drawn: ml=3.0 failed deep
+    # inside (slice indices must be integers), ml=True acted as 1, and markers given with
+    # mr was ignored (the command line refuses --markers with --mr).
+    if markers is not None and mr is not None:
+        raise ParameterError("markers applies to ml (continuous missing), not mr")
+    if mr is not None and (isinstance(mr, (bool, np.bool_)) or not isinstance(mr, Real)):
+        raise ParameterError(f"mr must be a number in [0, 1), got {mr!r}")
+    for name, value in (("ml", ml), ("markers", markers), ("seed", seed)):
+        if value is not None and not whole_number(value):
+            raise ParameterError(f"{name} must be a whole number, got {value!r}")
+    ml = None if ml is None else int(ml)
+    markers = 10 if markers is None else int(markers)
+    seed = None if seed is None else int(seed)
     if seed is not None and seed < 0:
         raise ParameterError(f"seed must be ≥ 0, got {seed}")
     rng = np.random.default_rng(seed)
@@ -267,7 +285,7 @@ def joint_samples_observed(motion: Motion) -> np.ndarray:
 
 
 def simulate_channel_gaps(motion: Motion, *, mr: float | None = None, ml: int | None = None,
-                          markers: int = 10, seed: int | None = None) -> Motion:
+                          markers: int | None = None, seed: int | None = None) -> Motion:
     """The paper's protocols on a skeleton clip (BVH, AMC), removing joint channels.
 
     The "markers" of the protocols are the joints that own channels: a removed joint sample

@@ -1,3 +1,5 @@
+import re
+
 import numpy as np
 import pytest
 
@@ -109,6 +111,33 @@ def test_continuous_missing_on_a_clip_without_gaps_draws_as_it_always_did():
 def test_absurd_simulation_parameters_are_rejected(kwargs):
     with pytest.raises(ParameterError):
         simulate_gaps(smooth_clip(100, 5), **kwargs)
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    (dict(ml=40.5), "ml must be a whole number, got 40.5"),
+    (dict(ml=True), "ml must be a whole number, got True"),
+    (dict(ml="3"), "ml must be a whole number, got '3'"),
+    (dict(ml=3, markers=2.5), "markers must be a whole number, got 2.5"),
+    (dict(mr=0.3, markers=3), "markers applies to ml (continuous missing), not mr"),
+    (dict(mr=0.3, markers=10), "markers applies to ml (continuous missing), not mr"),
+    (dict(mr="0.4"), "mr must be a number in [0, 1), got '0.4'"),
+    (dict(mr=True), "mr must be a number in [0, 1), got True"),
+    (dict(mr=0.3, seed=1.5), "seed must be a whole number, got 1.5"),
+    (dict(mr=0.3, seed=[1, 2]), "seed must be a whole number, got [1, 2]"),
+])
+def test_simulation_arguments_follow_the_command_lines_rules(kwargs, message):
+    # ml=40.5 and ml=3.0 failed deep inside (slice indices must be integers), ml=True acted
+    # as 1, markers given with mr was ignored.
+    with pytest.raises(ParameterError, match=re.escape(message)):
+        simulate_gaps(smooth_clip(100, 5), **kwargs)
+
+
+def test_simulation_counts_given_as_numpy_integers_or_whole_floats_are_those_counts():
+    motion = smooth_clip(100, 5)
+    expected = simulate_gaps(motion, ml=3, markers=2, seed=4).observed
+    for given in (dict(ml=3.0, markers=2.0, seed=4.0),
+                  dict(ml=np.int64(3), markers=np.int64(2), seed=np.int64(4))):
+        np.testing.assert_array_equal(simulate_gaps(motion, **given).observed, expected)
 
 
 def test_gap_frames_lists_every_frame_of_every_run_in_order():
