@@ -849,6 +849,8 @@ def repair_many(paths: Iterable[str | os.PathLike] | str | os.PathLike,
 
     Raises
     ------
+    TypeError
+        ``options`` that is not a ``RepairOptions`` (a dict of its fields).
     ParameterError
         Nothing safe to plan (see ``plan``), bad ``jobs`` (or any with ``scheduler``), Dask
         missing or unreachable, a malformed scheduler address.
@@ -856,6 +858,16 @@ def repair_many(paths: Iterable[str | os.PathLike] | str | os.PathLike,
         Ctrl-C; carries the report of the files finished so far.
     """
     started = time.perf_counter()
+    if options is not None:
+        # Loaded already where the caller made a RepairOptions. Refused once here: a dict
+        # ({'method': 'linear'}) failed every file alone.
+        from .pipeline import RepairOptions
+
+        if not isinstance(options, RepairOptions):
+            hint = (": mocapfill.RepairOptions(**options) makes one of a dict"
+                    if isinstance(options, dict) else "")
+            raise TypeError(f"repair_many() takes a RepairOptions as options, got "
+                            f"{type(options).__name__}{hint}")
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
     if jobs is not None and jobs < 1:

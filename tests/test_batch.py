@@ -550,6 +550,20 @@ def test_repair_many_refuses_bad_arguments_before_any_file(clean_tree, tmp_path,
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize(("options", "hint"), [
+    ({"method": "linear"}, ": mocapfill.RepairOptions(**options) makes one of a dict"),
+    ("linear", "")])
+def test_repair_many_refuses_options_that_are_not_repair_options_before_any_file(
+        clean_tree, tmp_path, options, hint):
+    # A dict failed every file one by one with a TypeError.
+    root, _ = clean_tree
+    with pytest.raises(TypeError, match=re.escape(
+            f"repair_many() takes a RepairOptions as options, got {type(options).__name__}"
+            f"{hint}")):
+        mocapfill.repair_many([root], tmp_path / "out", jobs=1, options=options)
+    assert not (tmp_path / "out").exists()
+
+
 def test_max_gap_in_seconds_fails_a_file_without_rate_and_converts_at_each_files_rate(
         tmp_path):
     root = tmp_path / "data"
