@@ -233,10 +233,15 @@ def check_coordinates(motion: Motion, markers: np.ndarray | None = None) -> None
     found = outsized(motion.positions, markers)
     if found is not None:
         value, frame, marker = found
-        raise FormatError(motion.path, f"a coordinate ({value:.6g}: marker "
-                          f"{motion.labels[marker]}, frame {motion.first_frame + frame}) is "
-                          f"too large to process (more than {MAX_MAGNITUDE:g} in magnitude: "
-                          "a corrupt value)")
+        raise too_large(motion.path, "coordinate", value,
+                        f"marker {motion.labels[marker]}, frame {motion.first_frame + frame}")
+
+
+def too_large(path, what: str, value: float, where: str) -> FormatError:
+    """The error of a ``what`` (a coordinate, a channel value) found at ``where`` in the
+    clip of ``path`` beyond ``scaling.MAX_MAGNITUDE`` (see :func:`check_coordinates`)."""
+    return FormatError(path, f"a {what} ({value:.6g}: {where}) is too large to process "
+                             f"(more than {MAX_MAGNITUDE:g} in magnitude: a corrupt value)")
 
 
 def label_matches(label: str, patterns: Sequence[str]) -> bool:

@@ -18,7 +18,7 @@ import numpy as np
 
 from ._blas import single_threaded
 from ._memory import release_memory
-from .errors import FormatError, NothingToRepair, ParameterError, SolverError, named
+from .errors import NothingToRepair, ParameterError, SolverError, named
 from .gaps import Gap, find_gaps, gap_frames, missing_runs
 from .motion import (
     Motion,
@@ -27,9 +27,10 @@ from .motion import (
     label_matches,
     matches_nothing,
     require_motion,
+    too_large,
     whole_number,
 )
-from .scaling import MAX_MAGNITUDE, UnitScale, outsized
+from .scaling import UnitScale, outsized
 from .solvers import get_method, option_parameters
 from .solvers._threads import in_order, thread_count
 
@@ -903,10 +904,8 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
     found = outsized(values)
     if found is not None:
         value, frame, column = found
-        raise FormatError(motion.path, f"a channel value ({value:.6g}: joint "
-                          f"{motion.labels[owner[column]]}, frame {motion.first_frame + frame}) "
-                          f"is too large to process (more than {MAX_MAGNITUDE:g} in magnitude: "
-                          "a corrupt value)")
+        raise too_large(motion.path, "channel value", value,
+                        f"joint {motion.labels[owner[column]]}, frame {motion.first_frame + frame}")
 
     fill = np.zeros_like(observed)
     for column in range(values.shape[1]):
