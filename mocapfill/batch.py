@@ -724,8 +724,62 @@ def _hang_ups_ignored():
             signal.signal(signal.SIGHUP, previous)
 
 
+# Why a file is failed when its worker process died under it (and only then: see _run_pool).
+WORKER_DIED = "worker process died (killed or out of memory)"
+
+
 def _run_pool(jobs: Sequence[FileJob], workers: int,
               done: Callable[[FileRecord], None]) -> None:
+    """Run ``jobs`` in local worker processes, calling ``done`` with each record.
+
+    A worker that dies (SIGKILL, the out-of-memory killer) breaks the whole pool: every
+    file not finished gets BrokenProcessPool, including those never started. Only a file
+    that was running can be to blame, so a new pool takes the files that had not started,
+    after the ones that had started and not finished (the suspects) are run again one at a
+    time, each in a pool of its own: a suspect that dies alone is failed, the others
+    (killed with the pool, or whose result was lost with it) are repaired. Each worker
+    marks a file as started by creating a file named after its index in a folder of
+    this function's; a creation is atomic, so a worker killed any time leaves it or not.
+    """
+    import shutil
+    import tempfile
+
+    started = tempfile.mkdtemp(prefix="mocapfill-started-")
+    try:
+        todo = list(enumerate(jobs))
+        while todo:
+            given = len(todo)
+            unfinished = _pool_pass(todo, min(workers, len(todo)), done, started)
+            if not unfinished:
+                return
+            marked = {int(name) for name in os.listdir(started)}
+            suspects = [(i, job) for i, job in unfinished if i in marked]
+            todo = [(i, job) for i, job in unfinished if i not in marked]
+            # Their temporaries: a worker killed outright does not remove its own.
+            remove_temp_files(job for _, job in suspects)
+            for item in suspects:
+                if _pool_pass([item], 1, done, started):
+                    remove_temp_files([item[1]])
+                    done(_lost(item[1], WORKER_DIED))
+            if not suspects and len(unfinished) == given:
+                # A pool that breaks before it starts any file (a worker that cannot even
+                # start) would break again: the files are failed, not retried for ever.
+                for _, job in todo:
+                    done(_lost(job, WORKER_DIED))
+                return
+    finally:
+        shutil.rmtree(started, ignore_errors=True)
+
+
+def _repair_started(job: FileJob, mark: str) -> FileRecord:
+    """``repair_file`` in a local worker, once ``mark`` records that it started."""
+    os.close(os.open(mark, os.O_CREAT | os.O_WRONLY, 0o600))
+    return repair_file(job)
+
+
+def _pool_pass(items: Sequence[tuple[int, FileJob]], workers: int,
+               done: Callable[[FileRecord], None], started: str) -> list[tuple[int, FileJob]]:
+    """One pool over ``items`` (index, job); the items it lost when it broke, if it did."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
@@ -740,21 +794,27 @@ def _run_pool(jobs: Sequence[FileJob], workers: int,
                                        mp_context=multiprocessing.get_context("spawn"),
                                        initializer=_single_threaded_worker,
                                        initargs=(os.getpid(),))
+    futures: dict = {}
+    lost: list[tuple[int, FileJob]] = []
     try:
         with temporary_environment(SINGLE_THREADED), _hang_ups_ignored():
-            futures = {executor.submit(repair_file, job): job for job in jobs}
+            for index, job in items:
+                mark = os.path.join(started, str(index))
+                futures[executor.submit(_repair_started, job, mark)] = (index, job)
         for future in as_completed(futures):
             try:
                 record = future.result()
             except BrokenProcessPool:
-                record = _lost(futures[future], "worker process died (killed or out of memory)")
+                lost.append(futures[future])
+                continue
             except Exception as exc:  # noqa: BLE001 - e.g. a result that cannot be sent back
-                record = _lost(futures[future], f"{type(exc).__name__}: {exc}")
+                record = _lost(futures[future][1], f"{type(exc).__name__}: {exc}")
             done(record)
     except BaseException:
         _stop_pool(executor)
         raise
     executor.shutdown(wait=True)
+    return sorted(lost, key=lambda item: item[0])
 
 
 def _lost(job: FileJob, reason: str) -> FileRecord:

@@ -947,3 +947,35 @@ def test_repair_many_reads_zero_gaps_of_text_files_when_asked(tmp_path):
         outcomes[setting] = (report.repaired, report.unchanged)
     assert outcomes == {"auto": (0, 1), "on": (1, 0)}
     assert (tmp_path / "on" / "z.csv").read_text().splitlines()[2] == "2,0.01,2,3,4"
+
+
+def _worker_dying_on_die_files(parent):
+    """A worker initializer (by reference, so spawned workers import it from here) whose
+    ``repair_file`` kills its process on a file named die*, as the OOM killer would."""
+    batch._single_threaded_worker(parent)
+    repair = batch.repair_file
+
+    def dying(job):
+        if job.input.name.startswith("die"):
+            os._exit(137)
+        return repair(job)
+
+    batch.repair_file = dying
+
+
+def test_a_worker_that_dies_fails_its_own_file_only(tmp_path, monkeypatch):
+    # A worker's death broke the pool, and every file not finished, started or not, was
+    # failed with "worker process died": 0 repaired, 8 failed for one kill.
+    root = tmp_path / "data"
+    root.mkdir()
+    for i, name in enumerate(["a", "b", "c", "die", "e", "f"]):
+        formats.write(with_gap(smooth_clip(240, 8, rate=480.0, seed=i), 1, 100, 120),
+                      root / f"{name}.npz")
+    monkeypatch.setattr(batch, "_single_threaded_worker", _worker_dying_on_die_files)
+    report = mocapfill.repair_many(root, tmp_path / "out", jobs=2,
+                                   options=RepairOptions(method="linear"))
+    by_name = {Path(r.input).name: r for r in report.records}
+    assert by_name.pop("die.npz").reason == batch.WORKER_DIED
+    assert {r.status for r in by_name.values()} == {"repaired"}, report.records
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        "a.npz", "b.npz", "c.npz", "e.npz", "f.npz"]
