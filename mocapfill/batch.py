@@ -795,6 +795,7 @@ def _pool_pass(items: Sequence[tuple[int, FileJob]], workers: int,
                                        initializer=_single_threaded_worker,
                                        initargs=(os.getpid(),))
     futures: dict = {}
+    reported: set = set()
     lost: list[tuple[int, FileJob]] = []
     try:
         with temporary_environment(SINGLE_THREADED), _hang_ups_ignored():
@@ -802,6 +803,7 @@ def _pool_pass(items: Sequence[tuple[int, FileJob]], workers: int,
                 mark = os.path.join(started, str(index))
                 futures[executor.submit(_repair_started, job, mark)] = (index, job)
         for future in as_completed(futures):
+            reported.add(future)
             try:
                 record = future.result()
             except BrokenProcessPool:
@@ -812,6 +814,12 @@ def _pool_pass(items: Sequence[tuple[int, FileJob]], workers: int,
             done(record)
     except BaseException:
         _stop_pool(executor)
+        # Files finished before the stop whose results were not handed out yet (the
+        # batch was paused, then Ctrl-C): their outputs are written, so they are reported.
+        for future in futures:
+            if (future not in reported and future.done() and not future.cancelled()
+                    and future.exception() is None):
+                done(future.result())
         raise
     executor.shutdown(wait=True)
     return sorted(lost, key=lambda item: item[0])
