@@ -245,6 +245,48 @@ def _glob_base(pattern: str) -> Path:
     return Path(*fixed) if fixed else Path(".")
 
 
+def _glob(pattern: str) -> list[Path]:
+    """``glob.glob(pattern, recursive=True)``, except that ``**`` does not go into symbolic
+    links to folders, as walking a folder does not: a link to a folder above it (``ln -s ..
+    loop``) made glob find the same file once per round of the loop up to the system's
+    path limit (41 times, its output written 400 characters deep), and two such links made
+    it run for ever (its work grows exponentially with depth). Other components match as
+    glob matches them, one level each, links included: that ends."""
+    parts = Path(pattern).parts
+    if "**" not in parts:
+        return [Path(match) for match in glob.glob(pattern)]
+    fixed = 0
+    while fixed < len(parts) - 1 and not glob.has_magic(parts[fixed]):
+        fixed += 1
+    rest = [part for k, part in enumerate(parts[fixed:], fixed)
+            if not (part == "**" and k > fixed and parts[k - 1] == "**")]   # **/** is **
+    found = [Path(*parts[:fixed])] if fixed else [Path(".")]
+    for k, part in enumerate(rest):
+        last = k == len(rest) - 1
+        if part == "**":
+            # A final ** matches everything under the folders: discover walks them.
+            found = found if last else [f for folder in found for f in _folders(folder)]
+        elif glob.has_magic(part):
+            found = [Path(match) for folder in found
+                     for match in glob.glob(os.path.join(glob.escape(str(folder)), part))]
+        else:
+            found = [folder / part for folder in found if os.path.lexists(folder / part)]
+        if not last:
+            found = [folder for folder in found if folder.is_dir()]
+    return [path for path in found if os.path.lexists(path)]
+
+
+def _folders(top: Path) -> list[Path]:
+    """``top`` and the folders under it that ``**`` matches: not hidden, not reached
+    through a symbolic link."""
+    found = [top]
+    for root, dirs, _files in os.walk(top):
+        dirs[:] = sorted(d for d in dirs
+                         if not d.startswith(".") and not os.path.islink(os.path.join(root, d)))
+        found += [Path(root) / d for d in dirs]
+    return found
+
+
 def discover(paths: Iterable[str | os.PathLike],
              exclude: str | os.PathLike | None = None) -> list[tuple[Path, Path]]:
     """Expand files, folders and globs into ``(file, relative output path)`` pairs.
@@ -252,7 +294,8 @@ def discover(paths: Iterable[str | os.PathLike],
     Folders are walked recursively for known suffixes (case-insensitive; ``.txt`` only when
     named explicitly); the output path mirrors the file's place under the folder. A glob's
     matches mirror their place under the glob's fixed leading folder; a plain file keeps
-    just its name. Hidden files and folders, and the folder ``exclude`` (the output folder,
+    just its name; a glob's ``**`` does not go into symbolic links to folders (``_glob``).
+    Hidden files and folders, and the folder ``exclude`` (the output folder,
     when it lies inside an input folder or a glob matches in it), are never picked up. A
     file reached twice is listed once.
 
@@ -277,7 +320,7 @@ def discover(paths: Iterable[str | os.PathLike],
                 format_module(path)  # raises the helpful "unknown / wrong suffix" error
             pairs.append((path, Path(path.name)))
         elif glob.has_magic(text):
-            matches = sorted(Path(m) for m in glob.glob(text, recursive=True))
+            matches = sorted(_glob(text))
             if not matches:
                 raise ParameterError(f"{text}: no file matches this pattern")
             base = _glob_base(text)

@@ -405,6 +405,24 @@ def test_globs_mirror_the_tree_under_their_fixed_folder(clean_tree, tmp_path):
     assert len(written) == N_GAPPED // 2
 
 
+def test_a_double_star_glob_does_not_follow_links_to_folders(tmp_path, monkeypatch):
+    # glob's ** follows them: a link to the folder above found the file 41 times over
+    # (written 400 characters deep), and two such links ran for ever.
+    monkeypatch.chdir(tmp_path)
+    for top, links in (("g", {"loop": ".."}), ("g2", {"up": "..", "self": "../real"})):
+        (tmp_path / top / "real").mkdir(parents=True)
+        formats.write(with_gap(smooth_clip(240, 8, rate=480.0), 1, 100, 120),
+                      tmp_path / top / "real" / "r.npz")
+        for name, target in links.items():
+            (tmp_path / top / "real" / name).symlink_to(target)
+        report = mocapfill.repair_many(f"{top}/**/*.npz", f"out-{top}", jobs=1,
+                                       options=RepairOptions(method="linear"))
+        assert [(r.input, r.output) for r in report.records] == [
+            (f"{top}/real/r.npz", f"out-{top}/real/r.npz")]
+    assert sorted(str(p) for p in Path("out-g").rglob("*")) == ["out-g/real",
+                                                                 "out-g/real/r.npz"]
+
+
 @pytest.mark.parametrize("args, words", [
     (["a.npz", "b.npz", "--jobs", "2"], "--jobs applies to batches"),
     (["a.npz", "b.npz", "--force"], "--force applies to batches"),
