@@ -456,9 +456,25 @@ def _write_in_place(motion, path: Path, read_as: tuple[int, int, int] | None = N
             # It names the temporary file formats.write was given (a full disk while
             # writing it); the user knows the file they repair.
             raise FormatError(given, exc.problem, exit_code=exc.exit_code) from None
+        _keep_owner(path, tmp)
         if read_as is not None and _state(path) != read_as:
             raise FormatError(given, CHANGED_WHILE_REPAIRED + "; left as it is")
         return notes
+
+
+def _keep_owner(path: Path, tmp) -> None:
+    """Give ``tmp`` the owner and group of ``path`` (before atomic_output copies the mode:
+    a chown clears the set-user-ID bits). The file is replaced, not rewritten, and a
+    repair run as root made every file root's: with mode 0600 its owner could no longer
+    read it. Only root may give a file away, and a group only to a member of it: where
+    the process may not, the file is its own, as any new file."""
+    if not hasattr(os, "chown"):            # Windows
+        return
+    info = os.stat(path)
+    try:
+        os.chown(tmp, info.st_uid, info.st_gid)
+    except PermissionError:
+        pass
 
 
 # What a batch says of an input that changed between its reading and its output's writing

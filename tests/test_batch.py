@@ -372,6 +372,32 @@ def test_in_place_repairs_the_target_of_a_symbolic_link_and_keeps_the_link(tmp_p
     assert not [p for p in tmp_path.rglob(".*")]
 
 
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0, reason="root gives files away")
+def test_in_place_as_root_keeps_the_files_owner_and_group(tmp_path):
+    # The file is replaced by a new one, which was root's: 0600 and its owner locked out.
+    source = tmp_path / "clip.npz"
+    formats.write(with_gap(smooth_clip(200, 6), 2, 50, 80), source)
+    os.chown(source, 65534, 65533)
+    source.chmod(0o600)
+    result = run(tmp_path, "--in-place", "-j", "1", "--max-jump", "0", *LINEAR)
+    assert result.exit_code == 0, result.output
+    info = source.stat()
+    assert (info.st_uid, info.st_gid, info.st_mode & 0o777) == (65534, 65533, 0o600)
+    assert formats.read(source).observed.all()
+
+
+def test_in_place_where_the_owner_cannot_be_kept_still_repairs(tmp_path, monkeypatch):
+    def refused(*args):
+        raise PermissionError(errno.EPERM, "Operation not permitted")
+
+    source = tmp_path / "clip.npz"
+    formats.write(with_gap(smooth_clip(200, 6), 2, 50, 80), source)
+    monkeypatch.setattr(os, "chown", refused, raising=False)
+    result = run(tmp_path, "--in-place", "-j", "1", "--max-jump", "0", *LINEAR)
+    assert result.exit_code == 0, result.output
+    assert formats.read(source).observed.all()
+
+
 def test_in_place_repairs_inputs_atomically_and_leaves_complete_files_untouched(clean_tree):
     root, files = clean_tree
     untouched = files["complete"].stat().st_mtime_ns
