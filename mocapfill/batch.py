@@ -199,10 +199,19 @@ def _known_suffixes() -> dict[str, str]:
     return FORMATS
 
 
-def _is_motion_file(path: Path) -> bool:
+def _is_motion_file(path: Path, named: str | None = None) -> bool:
+    """Whether a file found (not named) is picked up; ``named``: a suffix of
+    ``NOT_DISCOVERED`` that the glob which found it names (``'data/*.txt'``)."""
     suffix = path.suffix.lower()
-    return (suffix in _known_suffixes() and suffix not in NOT_DISCOVERED
+    return (suffix in _known_suffixes() and (suffix not in NOT_DISCOVERED or suffix == named)
             and not path.name.startswith(".") and path.is_file())
+
+
+def _named_suffix(pattern: str) -> str | None:
+    """The suffix a glob's last part spells out ('*.TXT' -> '.txt'), if it has no
+    wildcard."""
+    suffix = Path(pattern).suffix
+    return suffix.lower() if suffix and not glob.has_magic(suffix) else None
 
 
 def _walk(directory: Path, exclude: Path | None) -> list[Path]:
@@ -292,26 +301,28 @@ def discover(paths: Iterable[str | os.PathLike],
     """Expand files, folders and globs into ``(file, relative output path)`` pairs.
 
     Folders are walked recursively for known suffixes (case-insensitive; ``.txt`` only when
-    named explicitly); the output path mirrors the file's place under the folder. A glob's
-    matches mirror their place under the glob's fixed leading folder; a plain file keeps
-    just its name; a glob's ``**`` does not go into symbolic links to folders (``_glob``).
-    Hidden files and folders, and the folder ``exclude`` (the output folder,
-    when it lies inside an input folder or a glob matches in it), are never picked up. A
-    file reached twice is listed once.
+    named explicitly, as a file or by a glob ending in it: ``'data/*.txt'``); the output
+    path mirrors the file's place under the folder. A glob's matches mirror their place
+    under the glob's fixed leading folder; a plain file keeps just its name; a glob's
+    ``**`` does not go into symbolic links to folders (``_glob``). Hidden files and
+    folders, and the folder ``exclude`` (the output folder, when it lies inside an input
+    folder or a glob matches in it), are never picked up. A file reached twice is listed
+    once.
 
     Raises
     ------
     ParameterError
-        A path that does not exist or a glob that matches nothing.
+        A path that does not exist, a glob that matches no motion file, or no motion
+        file at all.
     FormatError
         A file named explicitly whose suffix is not a motion format (exit code 2).
     """
     from .formats import format_module
 
     exclude_path = None if exclude is None else Path(exclude)
+    texts = [os.fspath(given) for given in paths]
     pairs: list[tuple[Path, Path]] = []
-    for given in paths:
-        text = os.fspath(given)
+    for text in texts:
         path = Path(text)
         if path.is_dir():
             pairs += [(f, f.relative_to(path)) for f in _walk(path, exclude_path)]
@@ -323,16 +334,23 @@ def discover(paths: Iterable[str | os.PathLike],
             matches = sorted(_glob(text))
             if not matches:
                 raise ParameterError(f"{text}: no file matches this pattern")
-            base = _glob_base(text)
+            base, named, before = _glob_base(text), _named_suffix(text), len(pairs)
             for match in matches:
                 if _inside(match, exclude_path):    # the outputs of an earlier run
                     continue
                 if match.is_dir():
                     pairs += [(f, f.relative_to(base)) for f in _walk(match, exclude_path)]
-                elif _is_motion_file(match):
+                elif _is_motion_file(match, named):
                     pairs.append((match, match.relative_to(base)))
+            if len(pairs) == before:    # as one that matches nothing: not a batch of 0
+                raise ParameterError(f"{text}: none of the {len(matches)} path(s) this "
+                                     "pattern matches is a motion file")
         else:
             raise ParameterError(f"{text}: no such file or folder")
+    if not pairs:
+        searched = sorted(set(_known_suffixes()) - NOT_DISCOVERED)
+        raise ParameterError(f"no motion file in {', '.join(texts)} (folders are searched "
+                             f"for {' '.join(searched)}; a .txt is read when named)")
     unique: dict[Path, tuple[Path, Path]] = {}
     for file, relative in pairs:
         unique.setdefault(_real(file), (file, relative))

@@ -455,6 +455,8 @@ def test_a_double_star_glob_does_not_follow_links_to_folders(tmp_path, monkeypat
     (["a.npz", "b.npz", "--force", "--jobs", "2"], "--force, --jobs apply to batches"),
     (["a.npz", "b.npz", "c.npz"], "got 3 path(s)"),
     (["missing_folder", "-o", "out"], "no such file or folder"),
+    (["*.json", "-o", "out"], "none of the 1 path(s) this pattern matches is a motion file"),
+    (["folder.json", "-o", "out"], "no motion file in folder.json (folders are searched"),
     (["x.npz", "-o", "out", "--in-place"], "not both"),
     (["x.npz", "-o", "out", "--gaps-report", "g.csv"], "--report FILE.json"),
     (["x.npz", "-o", "out", "--report", "folder.json"], "--report must name a .json file"),
@@ -474,6 +476,22 @@ def test_batch_usage_errors_exit_2_with_one_line(tmp_path, monkeypatch, args, wo
     assert result.exit_code == 2
     assert not (tmp_path / "out").exists()      # refused before any file was repaired
     assert words in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_a_glob_ending_in_txt_takes_the_txt_files_a_folder_walk_leaves(tmp_path,
+                                                                       monkeypatch):
+    # .txt, too generic to pick up in a folder, is read as CSV when named: 'e/*.txt' found
+    # trial.txt, left it out, and exited 0 with "0 repaired".
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "e").mkdir()
+    (tmp_path / "e" / "trial.txt").write_text("a_X,a_Y,a_Z\n1,2,3\n,,\n3,4,5\n4,5,6\n")
+    result = run("e/*.txt", "-o", "out", *LINEAR)
+    assert result.exit_code == 0, result.output
+    assert result.stderr.startswith("1 repaired")
+    assert formats.read(tmp_path / "out" / "trial.txt").observed.all()
+    result = run("e", "-o", "out2", *LINEAR)
+    assert result.exit_code == 2
+    assert "no motion file in e" in result.stderr
 
 
 def test_the_report_may_go_in_the_output_folder_the_batch_creates(tmp_path, monkeypatch):
