@@ -505,6 +505,11 @@ def _repair_batch(paths, options, *, max_gap_s, out_dir, in_place, force, jobs, 
         # Checked now, not after hours of repairs.
         raise ParameterError(f"--report must name a .json file in an existing folder (or "
                              f"in the -o folder), got {report_path}")
+    if report_path is not None and out_dir is not None and Path(
+            os.path.abspath(out_dir)).is_relative_to(os.path.abspath(report_path)):
+        # The batch makes that folder: the report's write failed after every repair.
+        raise ParameterError(f"--report {report_path} is where the -o folder {out_dir} "
+                             "goes; name a .json file beside it or in it")
     progress = _BatchProgress()
     try:
         report = repair_many(paths, out_dir, options=options, jobs=jobs, scheduler=scheduler,

@@ -461,6 +461,8 @@ def test_a_double_star_glob_does_not_follow_links_to_folders(tmp_path, monkeypat
     (["x.npz", "-o", "out", "--gaps-report", "g.csv"], "--report FILE.json"),
     (["x.npz", "-o", "out", "--report", "folder.json"], "--report must name a .json file"),
     (["x.npz", "-o", "out", "--report", "out/sub/r.json"], "--report must name a .json file"),
+    (["x.npz", "-o", "r.json", "--report", "r.json"], "is where the -o folder r.json goes"),
+    (["x.npz", "-o", "r.json/sub", "--report", "./r.json"], "is where the -o folder"),
     (["x.npz", "x.csv", "-o", "out", "--suffix", ".trc"],
      "differ only in their suffix, which --suffix replaces"),
     # -j was ignored without a word: the cluster's workers run the files.
