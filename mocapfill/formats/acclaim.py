@@ -66,6 +66,7 @@ before anything is written: the output would be read with the wrong skeleton.
 """
 from __future__ import annotations
 
+import errno
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -588,6 +589,11 @@ def _source(motion: Motion, path: Path | None = None) -> AmcSource:
     return motion.source
 
 
+# What os.link raises on a file system without hard links (FAT, some network shares).
+NO_HARD_LINKS = frozenset({errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.ENOSYS,
+                           errno.EXDEV})
+
+
 def companions(motion: Motion, path: Path):
     """Before an AMC is written to ``path``: check the skeleton it will be read with.
 
@@ -633,11 +639,35 @@ def companions(motion: Motion, path: Path):
     target = folder / name
 
     def copy() -> None:
-        from . import atomic_output
+        import shutil
+        import tempfile
 
-        # Atomic, like every output: parallel batch workers may copy the same skeleton.
-        with atomic_output(target, mode_from=source.asf_path) as tmp:
+        from . import _discard, temp_prefix
+
+        # Written whole beside it, then linked in under the name only where the name is
+        # free: a parallel batch worker may have put another subject's skeleton there
+        # since this one looked (two AMCs whose skeletons share a name, into one folder),
+        # and renaming over it (os.replace) paired that worker's AMC with this skeleton.
+        # Where the name was taken meanwhile, the choice is made again with what is there.
+        fd, tmp = tempfile.mkstemp(prefix=temp_prefix(target.name), suffix=".tmp",
+                                   dir=folder)
+        os.close(fd)
+        try:
             Path(tmp).write_bytes(source.asf_path.read_bytes())
+            shutil.copymode(source.asf_path, tmp)
+            try:
+                os.link(tmp, target)
+            except FileExistsError:
+                again = companions(motion, path)
+                if again is not None:
+                    again()
+            except OSError as exc:
+                if exc.errno not in NO_HARD_LINKS:
+                    raise
+                with open(target, "xb") as out:     # still never replaces a file
+                    out.write(source.asf_path.read_bytes())
+        finally:
+            _discard(tmp)
     return copy
 
 

@@ -740,6 +740,37 @@ def test_the_copy_never_replaces_an_asf_and_takes_the_subject_prefix_instead(tmp
                                   motion.positions)
 
 
+def test_a_skeleton_copied_there_meanwhile_is_not_replaced(tmp_path, monkeypatch):
+    # Two AMCs of different subjects, their skeletons under one name, written into one
+    # folder by two batch workers: both saw no 10.asf, and the second copy replaced the
+    # first (os.replace), so the first AMC read back with the other subject's skeleton.
+    from mocapfill import formats
+
+    (tmp_path / "in").mkdir()
+    (tmp_path / "out").mkdir()
+    motion = acclaim.read(write_pair(tmp_path / "in", [frame(1), frame(2, arm="10")],
+                                     stem="10_01", asf_name="10.asf"))
+    other = ASF.replace("length 3", "length 4", 1)
+    looked = acclaim.companions
+
+    def the_other_worker_copies_first(motion, path):
+        copy = looked(motion, path)
+        if copy is not None and not (tmp_path / "out" / "10.asf").exists():
+            def late_copy():
+                (tmp_path / "out" / "10.asf").write_text(other)
+                copy()
+            return late_copy
+        return copy
+
+    monkeypatch.setattr(acclaim, "companions", the_other_worker_copies_first)
+    formats.write(motion, tmp_path / "out" / "10_01.amc")
+    assert (tmp_path / "out" / "10.asf").read_text() == other
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        "10.asf", "10_01.amc", "10_01.asf"]
+    np.testing.assert_array_equal(formats.read(tmp_path / "out" / "10_01.amc").positions,
+                                  motion.positions)
+
+
 # ----------------------------------------------------------------------- units of new files
 
 @pytest.mark.parametrize("suffix", [".trc", ".csv", ".c3d"])
