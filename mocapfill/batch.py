@@ -56,7 +56,7 @@ SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
                    "NUMEXPR_NUM_THREADS": "1", "MOCAPFILL_THREADS": "1"}
 
 DASK_MISSING = ("--scheduler needs dask.distributed, which is not installed: "
-                "pip install mocapfill[dask]")
+                "pip install 'dask[distributed]', or '.[dask]' in mocapfill's checkout")
 
 
 # ---------------------------------------------------------------- records
@@ -350,7 +350,8 @@ def discover(paths: Iterable[str | os.PathLike],
     if not pairs:
         searched = sorted(set(_known_suffixes()) - NOT_DISCOVERED)
         raise ParameterError(f"no motion file in {', '.join(texts)} (folders are searched "
-                             f"for {' '.join(searched)}; a .txt is read when named)")
+                             f"for {' '.join(searched)}; a .txt is read when named, alone "
+                             "or by a glob)")
     unique: dict[Path, tuple[Path, Path]] = {}
     for file, relative in pairs:
         unique.setdefault(_real(file), (file, relative))

@@ -671,8 +671,8 @@ def write_plots(results: PaperResults, plots_dir: Path) -> list[Path]:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        results.note("plots", "matplotlib is not installed (pip install mocapfill[plot]): "
-                              "tables only, no plots")
+        results.note("plots", "matplotlib is not installed (pip install matplotlib, or "
+                              "'.[plot]' in mocapfill's checkout): tables only, no plots")
         return []
     from .formats import atomic_output
 

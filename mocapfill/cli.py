@@ -246,7 +246,7 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
                    "--scheduler.")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Batch: run on a dask.distributed cluster (tcp://host:8786) whose workers "
-                   "see the same files (pip install mocapfill[dask]).")
+                   "see the same files (pip install 'dask[distributed]').")
 @click.option("--report", "report_path", type=_OutputFile(), default=None,
               help="Batch: write FILE.json with every file's status, reason, gaps filled "
                    "and left, frames and seconds.")
@@ -256,30 +256,32 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
               help="Completion method. trnn: our converged TrNN (default); trnn-paper: the "
                    "published algorithm and settings; trnn-lowrank: our TrNN alone, without "
                    "the validated per-gap blend (faster); linear/spline/pchip: interpolation "
-                   "along time; pca: Gløersen & Federolf 2016; svt, tsmc, ialm, psvt: the "
-                   "paper's comparison methods.")
+                   "along time; pca: Gløersen & Federolf 2016; gaussian: the EM conditional "
+                   "fill of a normal law over the frames; svt, tsmc, ialm, psvt: the paper's "
+                   "comparison methods.")
 @click.option("--rank", type=int, default=None,
               help="Truncated rank r (number of singular values not penalised). Default: "
-                   "min(15, estimated rank) (trnn, trnn-paper, gaussian) / 10 (psvt).")
+                   "min(15, estimated rank) (trnn, trnn-lowrank, trnn-paper, gaussian) / 10 "
+                   "(psvt).")
 @click.option("--lam", type=float, default=None,
               help="λ, weight of the sparse-outlier term (unitless; data are scaled to unit "
-                   "RMS before solving). Default 100/sqrt(max(m, n)) (trnn, trnn-paper, "
-                   "tsmc) / 1/sqrt(max(m, n)) (ialm, psvt).")
+                   "RMS before solving). Default 100/sqrt(max(m, n)) (trnn, trnn-lowrank, "
+                   "trnn-paper, tsmc) / 1/sqrt(max(m, n)) (ialm, psvt).")
 @click.option("--mu", type=float, default=None,
               help="μ, weight of the temporal smoothness term (unitless). Default 100 "
-                   "(trnn, trnn-paper, tsmc).")
+                   "(trnn, trnn-lowrank, trnn-paper, tsmc).")
 @click.option("--rho", type=float, default=None,
               help="ρ > 1, growth factor of the penalty η per iteration. Default 1.2 "
-                   "(trnn, tsmc) / 1.4 (trnn-paper) / 1.5 (ialm, psvt).")
+                   "(trnn, trnn-lowrank, tsmc) / 1.4 (trnn-paper) / 1.5 (ialm, psvt).")
 @click.option("--eta0", type=float, default=None,
-              help="η₀ > 0, initial penalty. Default 0.05 (trnn) / 1e-5 (trnn-paper) / "
-                   "0.01 (tsmc).")
+              help="η₀ > 0, initial penalty. Default 0.05 (trnn, trnn-lowrank) / 1e-5 "
+                   "(trnn-paper) / 0.01 (tsmc).")
 @click.option("--tol", type=float, default=None,
-              help="ε, relative stopping tolerance. Default 1e-4 (trnn, trnn-paper, "
-                   "gaussian, svt) / 1e-5 (tsmc) / 1e-7 (ialm, psvt).")
+              help="ε, relative stopping tolerance. Default 1e-4 (trnn, trnn-lowrank, "
+                   "trnn-paper, gaussian, svt) / 1e-5 (tsmc) / 1e-7 (ialm, psvt).")
 @click.option("--max-iter", type=int, default=None,
-              help="Iteration cap. Default 500 (trnn, trnn-paper, tsmc) / 1000 (svt, ialm, "
-                   "psvt) / 60 (gaussian).")
+              help="Iteration cap. Default 500 (trnn, trnn-lowrank, trnn-paper, tsmc) / "
+                   "1000 (svt, ialm, psvt) / 60 (gaussian).")
 @click.option("--max-gap", default=None, metavar="FRAMES|SECONDSs",
               help="Leave gaps longer than this missing (and report them): frames (40) or "
                    "seconds (0.5s, at the file's frame rate; refused for a file that states "
@@ -291,7 +293,8 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
                    "range ± 10%).")
 @click.option("--markers", multiple=True, metavar="NAME|GLOB",
               help="Fill only these markers (repeatable; shell globs like 'L*'). All others "
-                   "still serve as evidence.")
+                   "still serve as evidence. Patterns that together match no marker are an "
+                   "error (exit 2).")
 @click.option("--exclude", multiple=True, metavar="NAME|GLOB",
               help="Never fill these markers (repeatable; globs). Patterns that together "
                    "match no marker are an error, as for --markers.")
@@ -316,7 +319,7 @@ def repair(paths: tuple[Path, ...], out_dir, in_place, force, jobs, scheduler, r
 
     The output format follows OUT's suffix; a same-format repair patches a copy of IN
     (C3D: only the four words of each filled sample change, residual word 0 marks them).
-    IN is never modified; OUT is written atomically.
+    IN is never modified (but by --in-place); OUT is written atomically.
 
     Batch: `mocapfill repair IN... -o OUTDIR` repairs files, folders and globs on all
     cores (-j) or a Dask cluster (--scheduler), mirrors the tree under OUTDIR, keeps going
@@ -777,9 +780,10 @@ def info(in_path: Path, repaired_path: Path | None, as_json: bool, gaps_only: bo
 @_zero_option
 def plot(in_path: Path, repaired_path: Path | None, out_path: Path, markers: tuple[str, ...],
          zero_is_missing: str) -> None:
-    """Draw x/y/z trajectories over time (s) in file units: gaps shaded, fills dashed.
+    """Draw x/y/z trajectories over time (s; frames without a rate) in file units: gaps
+    shaded, fills dashed.
 
-    Needs the optional extra: pip install 'mocapfill[plot]'.
+    Needs matplotlib: pip install matplotlib (or '.[plot]' in mocapfill's checkout).
     """
     from .formats import check_output_folder
     from .plot import plot as draw
@@ -920,8 +924,8 @@ def _require_matplotlib(option: str) -> None:
     try:
         import matplotlib  # noqa: F401
     except ImportError:
-        raise ParameterError(f"{option} needs matplotlib: pip install 'mocapfill[plot]'") \
-            from None
+        raise ParameterError(f"{option} needs matplotlib: pip install matplotlib (or "
+                             "'.[plot]' in mocapfill's checkout)") from None
 
 
 @bench.command("paper")
@@ -933,7 +937,7 @@ def _require_matplotlib(option: str) -> None:
 @click.option("--output", "markdown_path", type=_OutputFile(), default=None,
               help="Also write the markdown report to FILE.md.")
 def bench_paper(plots_dir: Path | None, quick: bool, markdown_path: Path | None) -> None:
-    """Reproduce the paper's Figs. 2-6: synthetic NRE/time against IALM and PSVT, rank
+    """Reproduce the paper's figures 2-6: synthetic NRE/time against IALM and PSVT, rank
     estimate robustness, truncated-rank sweep, TrNN against TSMC over mr and ml (RMSE in
     mm). Prints a markdown report."""
     from .bench_paper import format_markdown, run_paper

@@ -1,7 +1,8 @@
 """Trajectory plots in the visual language of Qualisys QTM: gaps shaded, filled segments
 drawn distinctly (dashed, another colour) from measured ones.
 
-matplotlib is an optional extra (``pip install mocapfill[plot]``).
+matplotlib is an optional extra (``pip install '.[plot]'`` in the checkout, or ``pip install
+matplotlib``).
 """
 from __future__ import annotations
 
@@ -83,7 +84,8 @@ def plot(original: Motion, repaired: Motion | None, path: Path,
     try:
         import matplotlib
     except ImportError:
-        raise ParameterError("plotting needs matplotlib: pip install 'mocapfill[plot]'") from None
+        raise ParameterError("plotting needs matplotlib: pip install matplotlib (or '.[plot]' in "
+                             "mocapfill's checkout)") from None
     matplotlib.use("Agg")
     from matplotlib import pyplot as plt
 

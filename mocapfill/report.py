@@ -68,9 +68,12 @@ def format_info(motion: Motion, gaps_only: bool = False) -> str:
         if gaps_only and not row.missing:
             continue
         note = "" if fillable else "  (not a marker: never filled)"
+        # (no seconds for a clip of no rate: "nan s" read as a fault)
+        seconds = (f"{row.longest_s:6.3f} s" if math.isfinite(row.longest_s)
+                   else f"{'–':>6}")
         lines.append(f"{row.label:<{width}}  {f'{row.missing}/{row.frames}':>9} "
                      f"({row.percent:5.1f}%)  {row.gaps:>4}  "
-                     f"{row.longest:>5} fr {row.longest_s:6.3f} s{note}")
+                     f"{row.longest:>5} fr {seconds}{note}")
     return "\n".join(lines)
 
 

@@ -25,8 +25,10 @@ TIME_LIMIT_S = 10
 CLEAN_CODES = {0, 1, 2, 123}
 
 
-class Hang(Exception):
-    pass
+class Hang(BaseException):
+    """The time limit, raised from SIGALRM inside the command: a BaseException (as
+    KeyboardInterrupt is), so that the command's handler of unexpected exceptions (exit
+    70, a bug) lets it through to :func:`run_case`."""
 
 
 def _alarm(_signum, _frame):

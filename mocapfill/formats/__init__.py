@@ -114,7 +114,8 @@ def read(path: str | os.PathLike, **options) -> Motion:
     """Read a motion file of any known format.
 
     ``options`` are those of the format's reader: ``rate`` (Hz; every format, used only
-    where the file states none: an AMC, a C3D without ``POINT:RATE``, a TRC or CSV
+    where the file states none: an AMC, a C3D with no rate in ``POINT:RATE`` or its
+    header, a TRC or CSV
     without a rate or times, an NPZ without ``rate``; a BVH always states one),
     ``units`` (CSV, TRC: where the file states none; AMC: convert to it; BVH: its label),
     ``zero_is_missing`` (C3D, TRC, CSV), ``scale`` (BVH), ``asf`` (AMC).
