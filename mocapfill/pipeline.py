@@ -132,7 +132,11 @@ class RepairOptions:
         if self.space not in SPACES:
             raise ParameterError(f"space must be one of {', '.join(SPACES)}, got {self.space!r}")
         # Fail early on an unknown method, or an option the method does not take (batches
-        # would otherwise fail file after file).
+        # would otherwise fail file after file). The rate is the clip's, which the repair
+        # passes the method itself (given here too, it was a TypeError inside the repair).
+        if self.solver_options.get("rate") is not None:     # (None: the default, as for all)
+            raise ParameterError("rate is not a solver option: the repair gives the method "
+                                 "the clip's own (mocapfill.read(path, rate=...) sets it)")
         object.__setattr__(self, "solver_options",
                            checked_solver_options(self.method, self.solver_options))
 

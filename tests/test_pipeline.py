@@ -208,6 +208,14 @@ def test_solver_options_out_of_range_are_rejected_from_python_too(solver_options
         RepairOptions(method="trnn-lowrank", solver_options=solver_options)
 
 
+@pytest.mark.parametrize("method", ["linear", "trnn"])
+def test_the_rate_is_not_a_solver_option(method):
+    # The repair gives every method the clip's rate; given again, linear (which names
+    # rate in its signature) failed inside the repair with a duplicate-argument TypeError.
+    with pytest.raises(ParameterError, match="rate is not a solver option"):
+        RepairOptions(method=method, solver_options={"rate": 100})
+
+
 @pytest.mark.parametrize("max_gap_frames", [2.5, float("nan"), float("inf"), "40", True])
 def test_a_max_gap_that_is_not_a_whole_number_of_frames_is_rejected(max_gap_frames):
     # 2.5 acted as 2 (gap lengths are whole), nan and inf as no limit.
