@@ -246,10 +246,11 @@ def too_large(path, what: str, value: float, where: str) -> FormatError:
 
 def label_matches(label: str, patterns: Sequence[str]) -> bool:
     """Whether a marker label matches any of the names or shell globs, with or without
-    its Vicon ``Subject:`` prefix (``LKNE`` and ``L*`` select ``Male:LKNE``)."""
+    its Vicon ``Subject:`` prefix (``LKNE`` and ``L*`` select ``Male:LKNE``). A name is
+    matched as written first: ``L[1]`` is that label, not the glob of ``L1``."""
     bare = label.rsplit(":", 1)[-1]
-    return any(fnmatch.fnmatchcase(label, p) or fnmatch.fnmatchcase(bare, p)
-               for p in patterns)
+    return any(p in (label, bare) or fnmatch.fnmatchcase(label, p)
+               or fnmatch.fnmatchcase(bare, p) for p in patterns)
 
 
 def matches_nothing(motion: Motion, option: str, patterns: Sequence[str]) -> str:

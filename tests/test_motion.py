@@ -136,3 +136,13 @@ def test_a_motions_arrays_are_read_only_and_its_own():
     edited = clip.positions.copy()      # an edit is a new clip
     edited[1, 0] = np.nan
     assert not clip.with_positions(edited, clip.observed).observed[1, 0]
+
+
+def test_a_marker_name_is_matched_as_written_before_as_a_glob():
+    # 'L[1]' as a glob is the set [1]: the marker so named matched nothing, and the error
+    # listed it among the clip's markers.
+    from mocapfill.motion import label_matches
+
+    assert label_matches("L[1]", ["L[1]"]) and label_matches("Bob:L[1]", ["L[1]"])
+    assert label_matches("L1", ["L[1]"])                    # still the glob too
+    assert label_matches("LKNE", ["L*"]) and not label_matches("RKNE", ["L*"])
