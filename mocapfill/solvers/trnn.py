@@ -609,6 +609,7 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
                               validators={"trnn": lambda a, o: complete_lowrank(a, o, **loose)}
                               if skip_unweighted else None,
                               once=() if skip_unweighted else ("trnn",), centre=centre,
+                              temporal=("spline",),
                               # (not in the windows of long clips: the bench's 30-minute
                               # clip took 21.4 → 27.2 s with them, and long_clips.py 12001:0
                               # and 22001:0 moved by 0.003 mm at most)
