@@ -369,9 +369,25 @@ def _is_up_to_date(source: Path, output: Path) -> bool:
     try:
         written = output.stat()
         return (not stat.S_ISDIR(written.st_mode) and written.st_size > 0
-                and written.st_mtime_ns > source.stat().st_mtime_ns)
+                and written.st_mtime_ns > _input_time(source))
     except OSError:         # absent, a link loop, ...: redone, and its write says why
         return False
+
+
+def _input_time(source: Path) -> int:
+    """The latest modification time of what a repair of ``source`` reads: the file, and
+    an AMC's skeleton (an edited ``.asf`` left the output of its AMC skipped, with the old
+    skeleton copied beside it)."""
+    latest = source.stat().st_mtime_ns
+    if source.suffix.lower() == ".amc":
+        from .errors import FormatError
+        from .formats.acclaim import find_asf
+
+        try:
+            latest = max(latest, find_asf(source).stat().st_mtime_ns)
+        except (FormatError, OSError):  # no skeleton: the repair fails and says so
+            pass
+    return latest
 
 
 def plan(paths: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None = None, *,

@@ -420,6 +420,34 @@ def test_in_place_amc_beside_several_skeletons_leaves_no_extra_file(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["09.asf", "10.asf", "10_01.amc"]
 
 
+def test_an_edited_skeleton_makes_a_resumed_batch_redo_its_amc(tmp_path):
+    # Only the AMC's time was compared: an edited .asf left the output skipped, the old
+    # skeleton beside it.
+    from .formats.test_acclaim import ASF, frame, write_pair
+
+    data = tmp_path / "data"
+    data.mkdir()
+    frames = [frame(1), frame(2, arm="10"), frame(3, arm=None), frame(4, arm="30")]
+    write_pair(data, frames, stem="10_01", asf_name="10.asf")
+    out = tmp_path / "out"
+    assert run(data, "-o", out, "-j", "1", "--max-jump", "0", *LINEAR).exit_code == 0
+    assert run(data, "-o", out, "-j", "1", "--report", tmp_path / "a.json",
+               *LINEAR).exit_code == 0
+    assert [r["status"] for r in _report(tmp_path / "a.json")["files"]] == ["skipped"]
+    skeleton = data / "10.asf"
+    skeleton.write_text(ASF.replace("length 3", "length 4", 1))
+    later = (out / "10_01.amc").stat().st_mtime_ns + 10**9
+    os.utime(skeleton, ns=(later, later))
+    assert run(data, "-o", out, "-j", "1", "--max-jump", "0", "--report", tmp_path / "b.json",
+               *LINEAR).exit_code == 0
+    assert [r["status"] for r in _report(tmp_path / "b.json")["files"]] == ["repaired"]
+    # The old skeleton is never replaced: the new one goes beside the AMC under the name
+    # its reader tries first, so the output reads with the edited skeleton.
+    from mocapfill.formats.acclaim import find_asf
+
+    assert find_asf(out / "10_01.amc").read_text() == skeleton.read_text()
+
+
 def test_globs_mirror_the_tree_under_their_fixed_folder(clean_tree, tmp_path):
     root, _ = clean_tree
     result = run(f"{root}/subject*/walk/*.npz", "-o", tmp_path / "out", "-j", "1", *LINEAR)
