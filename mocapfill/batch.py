@@ -204,7 +204,10 @@ def _is_motion_file(path: Path, named: str | None = None) -> bool:
     ``NOT_DISCOVERED`` that the glob which found it names (``'data/*.txt'``)."""
     suffix = path.suffix.lower()
     return (suffix in _known_suffixes() and (suffix not in NOT_DISCOVERED or suffix == named)
-            and not path.name.startswith(".") and path.is_file())
+            and not path.name.startswith(".")
+            # A link to no file is taken, and fails naming it: skipped, a missing trial
+            # went unnoticed.
+            and (path.is_file() or (path.is_symlink() and not path.exists())))
 
 
 def _named_suffix(pattern: str) -> str | None:

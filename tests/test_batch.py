@@ -448,6 +448,18 @@ def test_an_edited_skeleton_makes_a_resumed_batch_redo_its_amc(tmp_path):
     assert find_asf(out / "10_01.amc").read_text() == skeleton.read_text()
 
 
+def test_a_link_to_no_file_in_a_walked_folder_is_a_failed_file(clean_tree, tmp_path):
+    # It was skipped without a word: a trial whose file went missing went unnoticed.
+    root, _ = clean_tree
+    (root / "gone.npz").symlink_to(tmp_path / "nowhere.npz")
+    result = run(root, "-o", tmp_path / "out", "-j", "1", "--report", tmp_path / "r.json",
+                 *LINEAR)
+    assert result.exit_code == 123
+    record, = [r for r in _report(tmp_path / "r.json")["files"]
+               if Path(r["input"]).name == "gone.npz"]
+    assert record["status"] == "failed" and "no such file" in record["reason"]
+
+
 def test_globs_mirror_the_tree_under_their_fixed_folder(clean_tree, tmp_path):
     root, _ = clean_tree
     result = run(f"{root}/subject*/walk/*.npz", "-o", tmp_path / "out", "-j", "1", *LINEAR)
