@@ -471,7 +471,7 @@ def test_a_window_starts_early_to_hold_a_gap_that_runs_out_of_the_window_before(
     assert np.abs(windowed - whole).max() < 1e-3 * np.abs(whole[0:3, 700:1100]).max()
 
 
-def test_windows_hold_whole_every_interior_gap_up_to_a_third_of_a_window():
+def test_windows_hold_whole_every_interior_gap_shorter_than_a_window():
     from mocapfill.gaps import missing_runs
     from mocapfill.pipeline import window_bounds
 
@@ -480,7 +480,7 @@ def test_windows_hold_whole_every_interior_gap_up_to_a_third_of_a_window():
         n, rows = int(rng.integers(1001, 6000)), int(rng.integers(1, 12))
         observed = np.ones((rows, n), bool)
         for _ in range(int(rng.integers(0, 8))):
-            length = int(rng.integers(1, 700))
+            length = int(rng.integers(1, 999))
             start = int(rng.integers(0, n - length))
             observed[int(rng.integers(rows)), start:start + length] = False
         bounds = window_bounds(n, 1000, 200, observed)
@@ -489,7 +489,10 @@ def test_windows_hold_whole_every_interior_gap_up_to_a_third_of_a_window():
         assert all(a[0] < b[0] <= a[1] - 200 for a, b in zip(bounds, bounds[1:]))
         for row in observed:
             for start, stop in missing_runs(row):
-                if 0 < start and stop < n and stop - start <= 333:
+                # (a gap of 998 frames or fewer, with a frame seen on either side; a gap
+                # of 600 beginning in a window's first half was held by none, when
+                # windows had to start at least half a window apart)
+                if 0 < start and stop < n and stop - start <= 998:
                     assert any(a < start and stop < b for a, b in bounds), (start, stop)
 
 
