@@ -305,9 +305,12 @@ def for_output(motion: Motion, path: str | os.PathLike) -> tuple[Motion, tuple[s
         notes.append(f"lengths in {units} converted to mm (1 {units} = {factor:.6g} mm)")
         motion = motion.replace(positions=motion.positions * factor, units="mm")
     if suffix in MARKER_ONLY_FORMATS and not (np.isfinite(motion.rate) and motion.rate > 0):
-        # A TRC states a DataRate and a CSV a Time column: the writers fall back on 120 Hz
-        # (_text.writable_rate), which the user should hear of, not find in the file.
-        notes.append("the clip's frame rate is not known (0 Hz): written as 120 Hz")
+        # A TRC states a DataRate and a CSV a Time column: the writers fall back on
+        # WRITTEN_RATE (_text.writable_rate), which the user should hear of, not find in
+        # the file.
+        from ._text import WRITTEN_RATE
+
+        notes.append(f"the clip's frame rate is not known (0 Hz): written as {WRITTEN_RATE:g} Hz")
     if suffix == ".c3d" and not module.stores_first_frame(motion):
         notes.append(f"first frame {motion.first_frame} does not fit a C3D (0 to "
                      f"{0xFFFFFFFF - motion.n_frames}): frames numbered from 1")

@@ -121,7 +121,7 @@ def differences(motion: Motion, read: AsRead) -> list[str]:
         found.append("which points are markers (fillable)")
     if motion.first_frame != read.first_frame:
         found.append(f"its first frame ({motion.first_frame}, read as {read.first_frame})")
-    if motion.rate != read.rate and not (np.isnan(motion.rate) and np.isnan(read.rate)):
+    if motion.rate != read.rate:            # (finite, as a Motion's rate must be)
         found.append(f"its rate ({motion.rate:g} Hz, read as {read.rate:g} Hz)")
     if motion.units != read.units:
         found.append(f"its units ({motion.units}, read as {read.units})")

@@ -527,10 +527,16 @@ def frame_rate(path: Path, text: str, what: str) -> float:
     return rate
 
 
-def writable_rate(rate: float, default: float) -> float:
-    """The rate a new file states: ``default`` for a clip without one (C3D with no
-    ``POINT:RATE`` reads as 0 Hz), which is also the rate its Time column is written at."""
-    return rate if np.isfinite(rate) and rate > 0 else default
+# The rate a new TRC or CSV file states for a clip without one (formats.write notes it). A
+# file that states none is read as 0 Hz, not as this.
+WRITTEN_RATE = 120.0
+
+
+def writable_rate(rate: float) -> float:
+    """The rate a new file states: WRITTEN_RATE for a clip without one (0 Hz: a C3D with no
+    ``POINT:RATE``, an AMC, a file stating none), which is also the rate its Time column
+    is written at."""
+    return rate if np.isfinite(rate) and rate > 0 else WRITTEN_RATE
 
 
 def rate_from_times(times: np.ndarray) -> float | None:

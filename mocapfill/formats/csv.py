@@ -127,9 +127,6 @@ from ._text import (
     write_lines,
 )
 
-# The rate a new file states for a clip without one (_text.writable_rate). A file that
-# states none is read as 0 Hz, not as this: see the module docstring.
-WRITTEN_RATE = 120.0
 DEFAULT_UNITS = "mm"
 KINDS = ("csv", "vicon", "headerless", "ktk", "motive")
 
@@ -247,7 +244,7 @@ def new_file_lines(motion: Motion, decimals: int | None = None) -> list[str]:
     names = new_file_names(motion.labels)
     header = ["Frame", "Time"] + [quote(f"{name}_{axis}", ",")
                                   for name in names for axis in "XYZ"]
-    rate = writable_rate(motion.rate, WRITTEN_RATE)
+    rate = writable_rate(motion.rate)
     lines = [f"# units: {motion.units}, rate: {format_float(rate)}\n",
              ",".join(header) + "\n"]
     lines.extend(",".join(cells) + "\n" for cells in frame_rows(

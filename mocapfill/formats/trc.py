@@ -112,9 +112,6 @@ from ._text import (
     write_lines,
 )
 
-# The rate a new file states for a clip without one (_text.writable_rate). A file that
-# states none is read as 0 Hz, not as this: see the module docstring.
-WRITTEN_RATE = 120.0
 DEFAULT_UNITS = "mm"
 HEADER_KEYS = ("DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units",
                "OrigDataRate", "OrigDataStartFrame", "OrigNumFrames")
@@ -269,7 +266,7 @@ def patches(motion: Motion) -> bool:
 
 def new_file_lines(motion: Motion, name: str, decimals: int | None = None) -> list[str]:
     """The lines of a new TRC file in OpenSim's layout (see the module docstring)."""
-    rate = writable_rate(motion.rate, WRITTEN_RATE)
+    rate = writable_rate(motion.rate)
     n_frames, n_markers = motion.n_frames, motion.n_markers
     values = (format_float(rate), format_float(rate), str(n_frames), str(n_markers),
               motion.units, format_float(rate), str(motion.first_frame), str(n_frames))
