@@ -2,7 +2,7 @@
 
 Cai, Candès & Shen, "A singular value thresholding algorithm for matrix completion",
 SIAM J. Optim. 20(4):1956–1982, 2010 — Algorithm 1 (Sec. 5.1.1). Applied to motion capture
-by Lai, Yuen & Chen, "Motion capture data completion and denoising by singular value
+by Lai, Yuen & Lee, "Motion capture data completion and denoising by singular value
 thresholding", Eurographics 2011 (short papers).
 
 The iteration, with D the data and P_Ω the projection onto observed entries::
@@ -14,10 +14,11 @@ The iteration, with D the data and P_Ω the projection onto observed entries::
 
 Parameters as in the paper's experiments (Sec. 5.1.1): δ = 1.2 / p with p = |Ω|/(mn) the
 sampling ratio, ε = 1e−4, and τ = 5n for n × n matrices, written τ = 5√(mn) for rectangular
-ones. The paper's test matrices have entries of variance r (products of Gaussian factors),
-so τ is really "5√(mn) times the data scale"; we write it as
-``tau = tau_factor · √(mn) · rms(P_Ω D)``, which is exactly 5√(mn) for the unit-RMS rows the
-pipeline hands the methods (and keeps the method unit-free for any other scaling).
+ones. The paper keeps τ = 5n whatever the matrix's scale (its test matrices have entries of
+variance r). We write ``tau = tau_factor · √(mn) · rms(P_Ω D)``, so that the method is
+unit-free: exactly the paper's 5√(mn) on the unit-RMS rows the pipeline hands the methods,
+and √r times the paper's τ on the paper's own test matrices (pass ``tau`` for the literal
+value).
 """
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Truncated-nuclear-norm completion (TrNN) of motion-capture matrices.
 
-Hu, Wang, Zhang, Wu & Shao, "Motion Capture Data Completion via Truncated Nuclear Norm
+Hu, Wang, Liu, Yang, Yu & Zhang, "Motion Capture Data Completion via Truncated Nuclear Norm
 Regularization", IEEE Signal Processing Letters 25(2), 2018. The model and every update
 step follow ``shared/docs/MODEL.md`` (the reconstruction of the paper's Section II):
 
