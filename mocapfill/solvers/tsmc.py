@@ -1,7 +1,7 @@
 """TSMC: low-rank completion with a temporal-stability term and sparse noise.
 
-Feng, Xiao, Zhuang, Yang, Zhang & Song (2014), "Exploiting temporal stability and low-rank structure for
-motion capture data refinement", Information Sciences 277:777–793. The model::
+Feng, Xiao, Zhuang, Yang, Zhang & Song (2014), "Exploiting temporal stability and low-rank
+structure for motion capture data refinement", Information Sciences 277:777–793. The model::
 
     min_{X,S} ‖X‖_* + (μ/2)‖X Tᵀ‖_F² + λ‖P_Ω(S)‖₁   s.t.  P_Ω(D) = P_Ω(X + S)
 
