@@ -272,7 +272,7 @@ def _summary_line(result, in_path: Path, out_path: Path) -> str:
                    "(trnn, trnn-lowrank, trnn-paper, tsmc).")
 @click.option("--rho", type=float, default=None,
               help="ρ > 1, growth factor of the penalty η per iteration. Default 1.2 "
-                   "(trnn, trnn-lowrank, tsmc) / 1.4 (trnn-paper) / 1.5 (ialm, psvt).")
+                   "(trnn, trnn-lowrank, tsmc) / 1.4 (trnn-paper) / 1.5 (ialm) / 1.1 (psvt).")
 @click.option("--eta0", type=float, default=None,
               help="η₀ > 0, initial penalty. Default 0.05 (trnn, trnn-lowrank) / 1e-5 "
                    "(trnn-paper) / 0.01 (tsmc).")
