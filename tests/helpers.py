@@ -1,5 +1,9 @@
-"""Synthetic clips for tests: smooth, low-rank-ish marker motion with known truth."""
+"""Synthetic clips for tests: smooth, low-rank-ish marker motion with known truth; and the
+check of a patched text file against the file it patched."""
 from __future__ import annotations
+
+import math
+import re
 
 import numpy as np
 
@@ -24,3 +28,29 @@ def with_gap(motion: Motion, marker: int, start: int, stop: int) -> Motion:
     observed = motion.observed.copy()
     observed[start:stop, marker] = False
     return motion.with_positions(motion.positions, observed)
+
+
+def assert_only_nan_tokens_replaced(gapped: str, patched: str) -> int:
+    """Assert ``patched`` is ``gapped`` with only its ``nan`` tokens replaced by numbers.
+
+    Both are whole texts (BVH frame lines, AMC bone lines: whitespace-separated tokens).
+    Every other token, every separator and every line ending must be the same text, so a
+    writer that rewrites an observed value beside a filled one (even to the same number
+    printed differently) is caught. Returns how many tokens were replaced.
+    """
+    before, after = gapped.splitlines(keepends=True), patched.splitlines(keepends=True)
+    assert len(after) == len(before), f"{len(after)} lines written, {len(before)} read"
+    replaced = 0
+    for number, (old, new) in enumerate(zip(before, after), start=1):
+        if new == old:
+            continue
+        old_parts, new_parts = re.split(r"(\s+)", old), re.split(r"(\s+)", new)
+        assert len(new_parts) == len(old_parts), f"line {number}: {old!r} became {new!r}"
+        for old_part, new_part in zip(old_parts, new_parts):
+            if old_part.lower() == "nan":
+                assert math.isfinite(float(new_part)), f"line {number}: {new_part!r} filled"
+                replaced += 1
+            else:
+                assert new_part == old_part, (f"line {number}: {old_part!r} became "
+                                              f"{new_part!r} (not a gap)")
+    return replaced
