@@ -364,6 +364,23 @@ def test_filled_cell_is_written_in_place_with_six_significant_digits(tmp_path):
     assert changed == [("arm nan", "arm 15.1235")] and len(after) == len(before)
 
 
+def test_a_filled_dof_replaces_only_its_own_token_in_its_bone_line(tmp_path):
+    # Observed dofs beside the gap, printed in several ways, spaced unevenly, must come back
+    # as the file holds them: only the nan token is rewritten.
+    root_gap = "root 1.5  -2.250 3.125000\tnan 20.0 -30.75 "
+    hand_gap = "hand nan  -7.50"
+    amc = write_pair(tmp_path, [
+        frame(1, root="1.5 -2.25 3.125 10 20 -30.75", hand="10 -7.5"),
+        frame(2, root=root_gap.removeprefix("root "), hand=hand_gap.removeprefix("hand ")),
+        frame(3, root="1.5 -2.25 3.125 20 20 -30.75", hand="20 -7.5")])
+    out = filled_everywhere(acclaim.read(amc), tmp_path / "out.amc")
+    before, after = amc.read_text().splitlines(), out.read_text().splitlines()
+    changed = [(a, b) for a, b in zip(before, after) if a != b]
+    assert changed == [(root_gap, root_gap.replace("nan", "15")),
+                       (hand_gap, hand_gap.replace("nan", "15"))]
+    assert len(after) == len(before)
+
+
 def test_filled_bone_absent_from_its_frame_gets_a_line_at_the_frames_end(tmp_path):
     amc = write_pair(tmp_path, [frame(1), frame(2, hand=None), frame(3)])
     motion = acclaim.read(amc)
