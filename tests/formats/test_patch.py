@@ -51,8 +51,20 @@ def test_a_repaired_clip_converted_to_metres_is_refused_not_patched_in_mixed_uni
     np.testing.assert_allclose(back.positions, in_metres.positions, rtol=1e-6)
 
 
+def one_coordinate(axis: int):
+    """An edit of one coordinate of one observed sample (MK02, frame 4)."""
+    def change(motion):
+        positions = motion.positions.copy()
+        positions[3, 2, axis] += 1.0
+        return motion.with_positions(positions, motion.observed)
+    return change
+
+
 @pytest.mark.parametrize("suffix", POSITION_SUFFIXES)
 @pytest.mark.parametrize("change, words", [
+    # One coordinate alone: each of x, y and z must reach the check.
+    *[pytest.param(one_coordinate(axis), "the values of 1 sample observed in the file "
+                   "(first: MK02, frame 4)", id=f"only-{name}") for axis, name in enumerate("xyz")],
     (lambda m: m.with_positions(m.positions + 100.0, m.observed),
      "the values of 230 samples observed in the file (first: MK00, frame 1)"),
     (lambda m: m.with_positions(np.where(np.arange(60)[:, None, None] == 7,
