@@ -6,7 +6,6 @@ import subprocess
 import sys
 import tempfile
 import threading
-import time
 import tracemalloc
 import warnings
 from pathlib import Path
@@ -803,19 +802,6 @@ def test_truncated_copy_of_a_real_file_is_a_format_error(tmp_path):
     path.write_bytes(data[:len(data) // 2])
     with pytest.raises(FormatError, match=r"cut\.c3d: truncated: \d+ of 450 frames present"):
         formats.read(path)
-
-
-def test_long_real_file_reads_fast():
-    path = shared_file("cmu/85_12.c3d")
-    best = min(_timed_read(path) for _ in range(5))
-    assert best < 0.1
-
-
-def _timed_read(path: Path) -> float:
-    started = time.perf_counter()
-    motion = c3d.read(path)
-    assert motion.positions.shape == (4499, 41, 3)
-    return time.perf_counter() - started
 
 
 def test_new_file_keeps_labels_outside_latin1_and_refuses_labels_past_255_bytes(tmp_path):
