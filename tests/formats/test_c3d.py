@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from mocapfill import formats
 from mocapfill.errors import FormatError
 from mocapfill.formats import c3d, trc
+from mocapfill.gaps import simulate_gaps
 from mocapfill.motion import Motion
 
 from ..conftest import shared_file, shared_files
@@ -68,21 +69,30 @@ def fill_by_interpolation(motion: Motion) -> Motion:
     return motion.with_positions(positions, observed)
 
 
-def assert_only_filled_samples_changed(before: Motion, after: Motion, written: Path) -> None:
-    """The byte invariant of the patch writer, plus a decode of what was written."""
-    source = before.source
-    original, patched = source.path.read_bytes(), written.read_bytes()
+def assert_only_samples_changed(source, patched: bytes, samples: np.ndarray) -> np.ndarray:
+    """Assert ``patched`` is the file of ``source`` but in the records of the (frames,
+    points) ``samples``; returns where those records start."""
+    original = source.path.read_bytes()
     assert len(patched) == len(original)
     assert patched[:source.data_start] == original[:source.data_start]
-    filled = after.observed & ~source.observed & source.fillable
     record = 4 * source.word_size
     allowed = np.zeros(len(original), bool)
-    frames, markers = np.nonzero(filled)
+    frames, markers = np.nonzero(samples)
     starts = (source.data_start + frames * source.frame_stride
               + source.point_index[markers] * record)
     allowed[starts[:, None] + np.arange(record)] = True
     changed = np.frombuffer(patched, np.uint8) != np.frombuffer(original, np.uint8)
-    assert not (changed & ~allowed).any(), "bytes outside the filled samples changed"
+    assert not (changed & ~allowed).any(), "bytes outside those samples changed"
+    return starts
+
+
+def assert_only_filled_samples_changed(before: Motion, after: Motion, written: Path) -> None:
+    """The byte invariant of the patch writer, plus a decode of what was written."""
+    source = before.source
+    filled = after.observed & ~source.observed & source.fillable
+    patched = written.read_bytes()
+    starts = assert_only_samples_changed(source, patched, filled)
+    record = 4 * source.word_size
     fourth = np.frombuffer(patched, np.uint8)[starts[:, None] + np.arange(record - source.word_size,
                                                                           record)]
     assert (fourth == 0).all(), "filled samples must carry residual word 0"
@@ -649,6 +659,18 @@ def repair_real_file(path: Path, tmp_path: Path) -> None:
         return
     before = c3d.read(path)
     after = fill_by_interpolation(before)
+    if not (after.observed & ~before.observed).any():
+        # Nothing the file holds to fill (85_02, 85_12, Dance, ...): remove a few samples
+        # first, so that fills are written and the bytes around them checked.
+        simulated = simulate_gaps(before, ml=5, markers=3, seed=0)
+        gapped = tmp_path / f"gapped-{path.name}"
+        formats.write(simulated, gapped)
+        assert_only_samples_changed(before.source, gapped.read_bytes(),
+                                    before.observed & ~simulated.observed)
+        before = c3d.read(gapped)
+        np.testing.assert_array_equal(before.observed, simulated.observed)
+        after = fill_by_interpolation(before)
+    assert (after.observed & ~before.observed).any(), "nothing was filled"
     out = tmp_path / path.name
     formats.write(after, out)
     assert_only_filled_samples_changed(before, after, out)
