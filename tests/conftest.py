@@ -2,9 +2,12 @@
 them skip with a reason when the folder is absent."""
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+from hypothesis.configuration import set_hypothesis_home_dir
 
 from mocapfill._blas import one_thread_by_default
 
@@ -14,6 +17,14 @@ from mocapfill._blas import one_thread_by_default
 # ran threaded BLAS while mocapfill took the variables for the user's choice, and the
 # real-data tests took 6 times as long.
 one_thread_by_default()
+
+# Hypothesis keeps no example database (a failing example is printed in the failure), and
+# what else it stores (a cache of the constants in the code under test, written while
+# pytest collects) goes to the system's temporary folder, as numpy's and scipy's conftests
+# have it, not to .hypothesis/ in the folder pytest runs in.
+settings.register_profile("mocapfill", database=None)
+settings.load_profile("mocapfill")
+set_hypothesis_home_dir(Path(tempfile.gettempdir()) / "mocapfill-hypothesis")
 
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
