@@ -458,7 +458,8 @@ def in_order(count: int, needs: Mapping[int, Sequence[int]],
     coordinators = [threading.Thread(target=coordinate, daemon=True,
                                      name=f"mocapfill-window-{w}")
                     for w in range(max(1, min(at_once, count)))]
-    # BLAS on one thread meanwhile: the threads run with the count set in this thread.
+    # BLAS on one thread meanwhile: the threads run with the count set here (OpenBLAS's
+    # is the process's, mocapfill._blas).
     with single_threaded():
         for thread in coordinators:
             thread.start()
