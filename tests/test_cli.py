@@ -838,6 +838,25 @@ def test_an_output_that_is_a_named_pipe_is_written_through_not_replaced(tmp_path
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted({fifo.name, target.name})
 
 
+@pytest.mark.skipif(os.name != "posix", reason="a umask is POSIX")
+def test_a_new_output_gets_the_umask_without_the_process_setting_it(tmp_path, monkeypatch):
+    # The umask was read by setting it to 0 and back (os.umask): for that moment every
+    # thread of the process created its files 0666 (a logging thread's under umask 077).
+    def set_umask(mask):
+        raise AssertionError("os.umask called: the umask was 0 for every thread meanwhile")
+
+    mask = os.umask(0o027)
+    try:
+        monkeypatch.setattr(os, "umask", set_umask)
+        formats.write_text_atomically(tmp_path / "report.json", "{}\n")
+        formats.write(smooth_clip(20, 2), tmp_path / "out.c3d")
+    finally:
+        monkeypatch.undo()
+        os.umask(mask)
+    assert {p.name: p.stat().st_mode & 0o777 for p in tmp_path.iterdir()} == {
+        "report.json": 0o640, "out.c3d": 0o640}
+
+
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="Linux's /dev/full")
 @pytest.mark.parametrize("args", [
     ["plot", "gapped.npz", "-o", "full.png"], ["plot", "gapped.npz", "-o", "full.svg"],
