@@ -477,15 +477,16 @@ def _with_gaps_left(record: FileRecord, zero_is_missing: str) -> FileRecord:
 def _write_in_place(motion, path: Path, read_as: tuple[int, int, int] | None = None
                     ) -> tuple[str, ...]:
     """Replace ``path`` atomically: write a sibling temp file with the same suffix (through
-    ``formats.write``, itself atomic), keep the input's permissions, rename it over. A
-    symbolic link is followed: its target is replaced and the link kept (renaming over the
-    link would have replaced it by a plain file and left the target unrepaired). With
-    ``read_as`` (:func:`_state` when the file was read), a file changed since is left as it
-    is: its new content would be lost under the repair of the old."""
+    ``formats.write``, itself atomic), rename it over; ``formats.atomic_output`` gives it
+    the input's mode, owner and group. A symbolic link is followed: its target is replaced
+    and the link kept (renaming over the link would have replaced it by a plain file and
+    left the target unrepaired). With ``read_as`` (:func:`_state` when the file was read), a
+    file changed since is left as it is: its new content would be lost under the repair of
+    the old."""
     from . import formats
 
     given, path = path, _real(path)
-    with formats.atomic_output(path, suffix=f".inplace{path.suffix}", mode_from=path) as tmp:
+    with formats.atomic_output(path, suffix=f".inplace{path.suffix}") as tmp:
         try:
             notes = formats.write(motion, tmp, final_path=path)
         except FormatError as exc:
@@ -494,25 +495,9 @@ def _write_in_place(motion, path: Path, read_as: tuple[int, int, int] | None = N
             # It names the temporary file formats.write was given (a full disk while
             # writing it); the user knows the file they repair.
             raise FormatError(given, exc.problem, exit_code=exc.exit_code) from None
-        _keep_owner(path, tmp)
         if read_as is not None and _state(path) != read_as:
             raise FormatError(given, CHANGED_WHILE_REPAIRED + "; left as it is")
         return notes
-
-
-def _keep_owner(path: Path, tmp) -> None:
-    """Give ``tmp`` the owner and group of ``path`` (before atomic_output copies the mode:
-    a chown clears the set-user-ID bits). The file is replaced, not rewritten, and a
-    repair run as root made every file root's: with mode 0600 its owner could no longer
-    read it. Only root may give a file away, and a group only to a member of it: where
-    the process may not, the file is its own, as any new file."""
-    if not hasattr(os, "chown"):            # Windows
-        return
-    info = os.stat(path)
-    try:
-        os.chown(tmp, info.st_uid, info.st_gid)
-    except PermissionError:
-        pass
 
 
 # What a batch says of an input that changed between its reading and its output's writing

@@ -857,6 +857,46 @@ def test_a_new_output_gets_the_umask_without_the_process_setting_it(tmp_path, mo
         "report.json": 0o640, "out.c3d": 0o640}
 
 
+@pytest.mark.skipif(os.name != "posix", reason="POSIX modes")
+@pytest.mark.parametrize("through_link", [False, True])
+def test_an_output_written_over_an_existing_file_keeps_its_mode(clip_files, through_link):
+    # The new file got the mode of a new one (0666 less the umask): an output made 0600
+    # came out 0644 when a repair was written over it, where cp or open() keep 0600.
+    old = clip_files / "old.npz"
+    old.write_bytes(b"old")
+    old.chmod(0o600)
+    out = clip_files / ("link.npz" if through_link else "old.npz")
+    if through_link:
+        out.symlink_to(old)
+    report = clip_files / "gaps.json"
+    report.write_text("old")
+    report.chmod(0o640)
+    result = run("repair", clip_files / "gapped.npz", out, "--method", "linear",
+                 "--gaps-report", report)
+    assert result.exit_code == 0, result.output
+    assert formats.read(out).n_frames == 300 and report.read_text() != "old"
+    assert (out.stat().st_mode & 0o7777, report.stat().st_mode & 0o7777) == (0o600, 0o640)
+    result = run("repair", clip_files / "gapped.npz", clip_files / "new.npz", "--method",
+                 "linear")
+    mask = os.umask(0)
+    os.umask(mask)
+    assert (clip_files / "new.npz").stat().st_mode & 0o777 == 0o666 & ~mask
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0, reason="root gives files away")
+def test_an_output_written_over_another_users_file_as_root_keeps_its_owner(clip_files):
+    # As --in-place keeps them: root's repair made the file root's, 0600 and its owner
+    # locked out.
+    out = clip_files / "out.npz"
+    out.write_bytes(b"old")
+    os.chown(out, 65534, 65533)
+    out.chmod(0o600)
+    result = run("repair", clip_files / "gapped.npz", out, "--method", "linear")
+    assert result.exit_code == 0, result.output
+    info = out.stat()
+    assert (info.st_uid, info.st_gid, info.st_mode & 0o7777) == (65534, 65533, 0o600)
+
+
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="Linux's /dev/full")
 @pytest.mark.parametrize("args", [
     ["plot", "gapped.npz", "-o", "full.png"], ["plot", "gapped.npz", "-o", "full.svg"],

@@ -418,11 +418,14 @@ def patch_problem(motion: Motion, path: str | os.PathLike) -> str | None:
 
 
 @contextmanager
-def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = None):
+def atomic_output(path: Path, suffix: str = ".tmp"):
     """A temporary name beside ``path`` to write to; it replaces ``path`` when the block
     ends normally and is removed when it raises, so ``path`` is never half-written.
 
-    The result gets the mode a plain ``open()`` would give, or that of ``mode_from``.
+    The result gets the mode a plain ``open()`` would give a new file (0666 less the
+    umask). Where ``path`` is a regular file (or links to one), it gets that file's mode,
+    and its owner and group where the process may set them (:func:`_keep_owner`), as
+    ``cp`` or ``open()`` over it keep them: a 0600 output overwritten came out 0644.
 
     A ``path`` that is (or links to) a device, a named pipe or a socket is written through,
     as ``open()`` would: renaming a file over it replaced the node itself (``--json
@@ -461,13 +464,19 @@ def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = Non
         return
     directory = path.parent if str(path.parent) else Path(".")
     try:
-        tmp = create_temp(directory, path.name, suffix, 0o666 if mode_from is None else 0o600)
+        replaced = os.stat(path)
+    except OSError:         # absent (or a dangling link, a loop): a new file
+        replaced = None
+    try:
+        # Only its owner reads the new file until it has the old one's mode.
+        tmp = create_temp(directory, path.name, suffix, 0o666 if replaced is None else 0o600)
     except OSError as exc:
         raise _naming(exc, path, None) from None
     try:
         yield tmp
-        if mode_from is not None:
-            shutil.copymode(mode_from, tmp)
+        if replaced is not None:
+            _keep_owner(replaced, tmp)
+            os.chmod(tmp, stat.S_IMODE(replaced.st_mode))
         os.replace(tmp, path)
     except OSError as exc:
         _discard(tmp)
@@ -475,6 +484,20 @@ def atomic_output(path: Path, suffix: str = ".tmp", mode_from: Path | None = Non
     except BaseException:
         _discard(tmp)
         raise
+
+
+def _keep_owner(replaced: os.stat_result, tmp: str) -> None:
+    """Give ``tmp`` the owner and group of the file it replaces (before its mode: a chown
+    clears the set-user-ID bits). The file is replaced, not rewritten, and a repair run as
+    root made every file root's: with mode 0600 its owner could no longer read it. Only
+    root may give a file away, and a group only to a member of it: where the process may
+    not, the file is its own, as any new file."""
+    if not hasattr(os, "chown"):            # Windows
+        return
+    try:
+        os.chown(tmp, replaced.st_uid, replaced.st_gid)
+    except PermissionError:
+        pass
 
 
 def _naming(exc: OSError, path: Path, tmp: str | None) -> OSError:
