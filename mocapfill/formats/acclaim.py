@@ -68,6 +68,7 @@ from __future__ import annotations
 
 import errno
 import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -639,22 +640,21 @@ def companions(motion: Motion, path: Path):
     target = folder / name
 
     def copy() -> None:
-        import shutil
-        import tempfile
-
-        from . import _discard, temp_prefix
+        from . import _discard, create_temp
 
         # Written whole beside it, then linked in under the name only where the name is
         # free: a parallel batch worker may have put another subject's skeleton there
         # since this one looked (two AMCs whose skeletons share a name, into one folder),
         # and renaming over it (os.replace) paired that worker's AMC with this skeleton.
         # Where the name was taken meanwhile, the choice is made again with what is there.
-        fd, tmp = tempfile.mkstemp(prefix=temp_prefix(target.name), suffix=".tmp",
-                                   dir=folder)
-        os.close(fd)
+        # The source's mode less the umask (applied by the system as it creates the file),
+        # as the AMC beside it gets: copied as it was (shutil.copymode), a 0666 skeleton
+        # came out world-writable under umask 022, and a 0644 one readable to all beside a
+        # 0600 AMC under umask 077.
+        mode = stat.S_IMODE(os.stat(source.asf_path).st_mode) & 0o777
+        tmp = create_temp(folder, target.name, ".tmp", mode)
         try:
             Path(tmp).write_bytes(source.asf_path.read_bytes())
-            shutil.copymode(source.asf_path, tmp)
             try:
                 os.link(tmp, target)
             except FileExistsError:
@@ -664,7 +664,10 @@ def companions(motion: Motion, path: Path):
             except OSError as exc:
                 if exc.errno not in NO_HARD_LINKS:
                     raise
-                with open(target, "xb") as out:     # still never replaces a file
+                # Still never replaces a file.
+                fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL
+                             | getattr(os, "O_BINARY", 0), mode)
+                with open(fd, "wb") as out:
                     out.write(source.asf_path.read_bytes())
         finally:
             _discard(tmp)

@@ -712,6 +712,33 @@ def test_an_amc_is_never_left_without_its_skeleton_when_the_copy_fails(tmp_path,
     assert list((tmp_path / "out").iterdir()) == []
 
 
+@pytest.mark.skipif(os.name != "posix", reason="a umask is POSIX")
+@pytest.mark.parametrize(("umask", "source_mode", "expected"),
+                         [(0o022, 0o666, 0o644), (0o077, 0o644, 0o600), (0o022, 0o600, 0o600)])
+@pytest.mark.parametrize("hard_links", [True, False])
+def test_the_skeleton_copied_beside_an_amc_gets_its_mode_less_the_umask(
+        tmp_path, monkeypatch, umask, source_mode, expected, hard_links):
+    # Its mode was copied as it was: a 0666 skeleton came out world-writable under umask
+    # 022, and under umask 077 the AMC was 0600 but its skeleton 0644.
+    (tmp_path / "in").mkdir()
+    (tmp_path / "out").mkdir()
+    motion = acclaim.read(write_pair(tmp_path / "in", [frame(1), frame(2, arm="10")],
+                                     asf_name="tiny.asf"))
+    (tmp_path / "in" / "tiny.asf").chmod(source_mode)
+    if not hard_links:          # FAT, some network shares: written under its name
+        def refused(*args, **kwargs):
+            raise OSError(errno.EPERM, os.strerror(errno.EPERM))
+
+        monkeypatch.setattr(os, "link", refused)
+    previous = os.umask(umask)
+    try:
+        formats.write(motion, tmp_path / "out" / "copy_01.amc")
+    finally:
+        os.umask(previous)
+    modes = {p.name: p.stat().st_mode & 0o7777 for p in (tmp_path / "out").iterdir()}
+    assert modes == {"copy.asf": expected, "copy_01.amc": 0o666 & ~umask}
+
+
 def test_a_skeleton_named_by_a_symlink_loop_beside_the_output_is_a_format_error(tmp_path):
     # Path.resolve() raised RuntimeError on the loop: a traceback, not a one-line error.
     from mocapfill import formats
