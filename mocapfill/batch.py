@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import glob
 import os
+import secrets
 import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -76,6 +77,9 @@ class FileJob:
     zero_is_missing: str = "auto"
     max_gap_s: float | None = None
     in_place: bool = False
+    # The token in the names of its temporary files (formats.temp_token): the batch's, so
+    # that stopping it removes its own only; None, that of the process writing it.
+    temp_token: str | None = None
 
 
 @dataclass(frozen=True)
@@ -526,23 +530,31 @@ def _not_newer_than_input(output: Path, source: Path) -> bool:
     return True
 
 
-def _temp_patterns(output: Path) -> list[str]:
+def _temp_patterns(output: Path, token: str) -> list[str]:
     """Globs of the temporary files ``formats.write`` and ``_write_in_place`` leave beside
-    ``output`` while writing it."""
-    from .formats import temp_prefix
+    ``output`` while writing it with the token ``token``."""
+    from .formats import _RANDOM_CHARS, temp_prefix
 
     in_place = f".inplace{output.suffix}"
-    return [f"{glob.escape(temp_prefix(output.name))}*.tmp",
-            f"{glob.escape(temp_prefix(output.name, in_place))}*{glob.escape(in_place)}",
-            f".{glob.escape(temp_prefix(output.name, in_place))}*.tmp"]
+    outer = temp_prefix(output.name, in_place, token)
+    # formats.write's own temporary for that one, named after it: cut short as
+    # temp_prefix cuts it (a long name), its random part then matched by "?" (NUL here).
+    inner = temp_prefix(f"{outer}{chr(0) * _RANDOM_CHARS}{in_place}", ".tmp", token)
+    return [f"{glob.escape(temp_prefix(output.name, '.tmp', token))}*.tmp",
+            f"{glob.escape(outer)}*{glob.escape(in_place)}",
+            f"{glob.escape(inner).replace(chr(0), '?')}*.tmp"]
 
 
 def remove_temp_files(jobs: Iterable[FileJob]) -> None:
-    """Delete temporary files of interrupted writes (a worker killed mid-write)."""
+    """Delete temporary files of interrupted writes (a worker killed mid-write): those
+    named with the job's token (``FileJob.temp_token``, else this process's), so not those
+    of another batch or command writing the same output name in the same folder."""
+    from .formats import temp_token
+
     for job in jobs:
         # In place, the write goes beside the symbolic link's target (_write_in_place).
         output = _real(job.output) if job.in_place else job.output
-        for pattern in _temp_patterns(output):
+        for pattern in _temp_patterns(output, job.temp_token or temp_token()):
             for leftover in output.parent.glob(pattern):
                 leftover.unlink(missing_ok=True)
 
@@ -574,8 +586,18 @@ def repair_file(job: FileJob) -> FileRecord:
 
     Runs wherever the batch runs (this process, a local worker, a Dask worker). Ctrl-C
     (KeyboardInterrupt) and SystemExit propagate; ``formats.write`` removes its temporary
-    file on the way out.
+    file on the way out. Its temporary files are named with ``job.temp_token``.
     """
+    from . import formats
+
+    token = formats.TEMP_TOKEN.set(job.temp_token)
+    try:
+        return _repair_file(job)
+    finally:
+        formats.TEMP_TOKEN.reset(token)
+
+
+def _repair_file(job: FileJob) -> FileRecord:
     from . import formats
     from .pipeline import repair
     from .report import reader_notes
@@ -1027,6 +1049,9 @@ def repair_many(paths: Iterable[str | os.PathLike] | str | os.PathLike,
                              "(dask worker --nworkers) repair the files")
     todo, skipped = plan(paths, out_dir, options=options, in_place=in_place, force=force,
                          zero_is_missing=zero_is_missing, max_gap_s=max_gap_s, suffix=suffix)
+    # This batch's own, wherever its files are written (workers, Dask, other machines).
+    token = secrets.token_hex(4)
+    todo = [replace(job, temp_token=token) for job in todo]
     if check:
         skipped = [_with_gaps_left(record, zero_is_missing) for record in skipped]
     finished: list[FileRecord] = []

@@ -973,6 +973,63 @@ def test_temporaries_of_an_output_with_a_long_name_are_found_to_be_removed(tmp_p
         raise InterruptedError
 
 
+@pytest.mark.parametrize("in_place", [False, True])
+def test_a_stopped_batch_leaves_the_temporaries_of_another_writer_of_its_outputs(tmp_path,
+                                                                                 in_place):
+    # Its temporaries were found by the output's name alone: a batch stopped (Ctrl-C, a
+    # worker that died) removed those of a `mocapfill repair` (or another batch) writing
+    # the same output name in the same folder, which then failed ("No such file or
+    # directory").
+    source = tmp_path / "in" / "clip.npz"
+    source.parent.mkdir()
+    for path in (source.parent / "a.npz", source):     # repaired in that order
+        formats.write(with_gap(smooth_clip(200, 6), 2, 50, 80), path)
+    out = source.parent if in_place else tmp_path / "out"
+    out.mkdir(exist_ok=True)
+
+    def interrupt(done, total, record):
+        if done:        # after a.npz: clip.npz's temporaries are the batch's to remove
+            raise KeyboardInterrupt
+
+    with contextlib.ExitStack() as stack:
+        # The other writer's temporaries, named as formats.write and an in-place write
+        # name them in its process.
+        if in_place:
+            outer = stack.enter_context(formats.atomic_output(source, suffix=".inplace.npz"))
+            theirs = [outer, stack.enter_context(formats.atomic_output(Path(outer)))]
+        else:
+            theirs = [stack.enter_context(formats.atomic_output(out / "clip.npz"))]
+        Path(theirs[-1]).write_bytes(source.read_bytes())
+        with pytest.raises(batch.BatchInterrupted) as caught:
+            mocapfill.repair_many(source.parent, None if in_place else out,
+                                  in_place=in_place, options=RepairOptions(method="linear"),
+                                  jobs=1, progress=interrupt)
+        assert [Path(r.input).name for r in caught.value.report.records] == ["a.npz"]
+        assert all(os.path.exists(p) for p in theirs)
+    assert formats.read(out / "clip.npz").n_frames == 200
+
+
+@pytest.mark.parametrize("in_place", [False, True])
+def test_a_batch_removes_the_temporaries_named_with_its_token_only(tmp_path, in_place):
+    output = tmp_path / "clip.npz"
+    job = batch.FileJob(output if in_place else tmp_path / "in.npz", output,
+                        in_place=in_place, temp_token="b4tch")
+    made = {}
+    with pytest.raises(InterruptedError), contextlib.ExitStack() as stack:
+        for token in ("b4tch", "12345"):
+            stack.callback(formats.TEMP_TOKEN.reset, formats.TEMP_TOKEN.set(token))
+            if in_place:
+                outer = stack.enter_context(formats.atomic_output(output,
+                                                                  suffix=".inplace.npz"))
+                made[token] = [outer, stack.enter_context(formats.atomic_output(Path(outer)))]
+            else:
+                made[token] = [stack.enter_context(formats.atomic_output(output))]
+        batch.remove_temp_files([job])
+        assert [os.path.exists(p) for p in made["b4tch"]] == [False] * len(made["b4tch"])
+        assert all(os.path.exists(p) for p in made["12345"])
+        raise InterruptedError
+
+
 def test_an_output_named_by_a_symlink_loop_is_written_in_its_place(tmp_path):
     # Path.resolve() and the resume check's stat() raised on a loop: a traceback before
     # any file was repaired, and exit 1, which is --check's "gaps left".

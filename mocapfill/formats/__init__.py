@@ -39,6 +39,7 @@ import stat
 import sys
 import tempfile
 from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from types import ModuleType
 
@@ -543,15 +544,31 @@ def create_temp(directory: str | os.PathLike, name: str, suffix: str = ".tmp",
     raise FileExistsError(errno.EEXIST, "No usable temporary file name found", str(directory))
 
 
-def temp_prefix(name: str, suffix: str = ".tmp") -> str:
+# The token of the temporary names written in this context (:func:`temp_token`): a batch
+# sets its own around each file it repairs (``batch.repair_file``).
+TEMP_TOKEN: ContextVar[str | None] = ContextVar("mocapfill_temp_token", default=None)
+
+
+def temp_token() -> str:
+    """The token :func:`temp_prefix` puts in a temporary name: :data:`TEMP_TOKEN` where set,
+    else this process's id. A batch stopped (Ctrl-C, a worker that died) removes the
+    temporaries of its files (``batch.remove_temp_files``), found by name: matched by the
+    output's name alone, they were those of any command writing the same output name in
+    the same folder at that moment too, which then failed ("No such file or directory")."""
+    return TEMP_TOKEN.get() or str(os.getpid())
+
+
+def temp_prefix(name: str, suffix: str = ".tmp", token: str | None = None) -> str:
     """How :func:`atomic_output` starts the name of its temporary file for the file
-    ``name``: ``.<name>.``, the name cut short where ``.<name>.<random><suffix>`` would
-    pass :data:`NAME_MAX` bytes (an output named with 255 bytes, which the file system
-    takes, failed with "File name too long")."""
-    room = NAME_MAX - len(os.fsencode(suffix)) - _RANDOM_CHARS - 2
+    ``name``: ``.<name>.<token>.`` (``token``, by default :func:`temp_token`), the name cut
+    short where ``.<name>.<token>.<random><suffix>`` would pass :data:`NAME_MAX` bytes (an
+    output named with 255 bytes, which the file system takes, failed with "File name too
+    long")."""
+    token = temp_token() if token is None else token
+    room = NAME_MAX - len(os.fsencode(suffix)) - _RANDOM_CHARS - len(os.fsencode(token)) - 3
     while len(os.fsencode(name)) > room:
         name = name[:-1]
-    return f".{name}."
+    return f".{name}.{token}."
 
 
 def _own_stream(path: Path):
