@@ -322,19 +322,32 @@ def _asf_files(folder: Path) -> dict[str, Path]:
 
 
 def find_asf(amc: Path) -> Path:
-    """The ASF of an AMC: same stem, subject prefix, or the only .asf in the folder."""
+    """The ASF of an AMC: same stem, subject prefix, or the only .asf in the folder.
+
+    An AMC given through a symbolic link whose folder holds none of these gets the one
+    beside the link's target, found the same way (by the target's name first): a folder
+    of links to trials (``links/09_12.amc -> ../in/09_12.amc``) failed with "cannot find
+    its skeleton", where the target itself read.
+    """
     folder = amc.parent if str(amc.parent) else Path(".")
-    asfs = _asf_files(folder)
-    tried = _asf_names(amc)
-    for name in tried:
-        if name.lower() in asfs:
-            return asfs[name.lower()]
-    if len(asfs) == 1:
-        return next(iter(asfs.values()))
-    found = f"{len(asfs)} .asf files" if asfs else "no .asf file"
-    raise FormatError(amc, f"cannot find its skeleton: tried {' and '.join(tried)}"
-                           f" in {folder}, which holds {found}; put the skeleton beside it, "
-                           f"named {amc.stem}.asf")
+    places = [(folder, _asf_names(amc), "")]
+    # realpath, not Path.resolve(), which raises on a link loop (before Python 3.13).
+    real = Path(os.path.realpath(amc))
+    if real.parent != Path(os.path.realpath(folder)):
+        places.append((real.parent, list(dict.fromkeys(_asf_names(real) + _asf_names(amc))),
+                       "its target's folder "))
+    looked = []
+    for where, tried, which in places:
+        asfs = _asf_files(where)
+        for name in tried:
+            if name.lower() in asfs:
+                return asfs[name.lower()]
+        if len(asfs) == 1:
+            return next(iter(asfs.values()))
+        found = f"{len(asfs)} .asf files" if asfs else "no .asf file"
+        looked.append(f"tried {' and '.join(tried)} in {which}{where}, which holds {found}")
+    raise FormatError(amc, f"cannot find its skeleton: {'; '.join(looked)}; put the skeleton "
+                           f"beside it, named {amc.stem}.asf")
 
 
 # --------------------------------------------------------------------------- AMC

@@ -329,6 +329,41 @@ def test_missing_asf_error_names_what_was_tried(tmp_path):
         acclaim.read(amc)
 
 
+@pytest.mark.parametrize("link_name", ["09_12.amc", "walk.amc"])
+def test_an_amc_given_through_a_symlink_finds_the_skeleton_beside_its_target(tmp_path,
+                                                                             link_name):
+    # `ln -s ../in/09_12.amc links/; mocapfill repair links/09_12.amc out.amc` failed
+    # (exit 123, "cannot find its skeleton ... in links") where the target itself read.
+    (tmp_path / "in").mkdir()
+    (tmp_path / "links").mkdir()
+    write_pair(tmp_path / "in", [frame(1), frame(2, arm="10")], stem="09_12",
+               asf_name="09.asf")
+    (tmp_path / "in" / "10.asf").write_text("another subject's")
+    link = tmp_path / "links" / link_name
+    link.symlink_to(Path("..") / "in" / "09_12.amc")
+    motion = formats.read(link)
+    assert motion.source.asf_path == tmp_path / "in" / "09.asf"
+    np.testing.assert_array_equal(motion.positions,
+                                  formats.read(tmp_path / "in" / "09_12.amc").positions)
+    (tmp_path / "out").mkdir()
+    formats.write(motion, tmp_path / "out" / "09_12.amc")
+    assert (tmp_path / "out" / "09.asf").read_text() == ASF
+
+
+def test_a_symlinked_amc_without_a_skeleton_names_both_folders_looked_in(tmp_path):
+    (tmp_path / "in").mkdir()
+    (tmp_path / "links").mkdir()
+    (tmp_path / "in" / "09_12.amc").write_text(frame(1))
+    (tmp_path / "links" / "walk.amc").symlink_to(tmp_path / "in" / "09_12.amc")
+    with pytest.raises(FormatError) as caught:
+        formats.read(tmp_path / "links" / "walk.amc")
+    assert str(caught.value) == (
+        f"{tmp_path / 'links' / 'walk.amc'}: cannot find its skeleton: tried walk.asf in "
+        f"{tmp_path / 'links'}, which holds no .asf file; tried 09_12.asf and 09.asf and "
+        f"walk.asf in its target's folder {tmp_path / 'in'}, which holds no .asf file; put "
+        "the skeleton beside it, named walk.asf")
+
+
 # ----------------------------------------------------------------------- channel space
 
 def test_channels_unwrap_and_with_channels_rewraps_only_filled_cells(tmp_path):
