@@ -190,7 +190,7 @@ def _parse_hierarchy(tokens: list[str]) -> _Hierarchy:
             tree.offsets[stack[-1]] = [float(t) for t in tokens[i + 1:i + 4]]
             i += 4
         elif upper == "CHANNELS":
-            count = int(tokens[i + 1])
+            count = _channel_count(tokens, i, tree.names[stack[-1]])
             tree.set_channels(stack[-1], tokens[i + 2:i + 2 + count])
             i += 2 + count
         elif upper == "HIERARCHY":
@@ -202,6 +202,25 @@ def _parse_hierarchy(tokens: list[str]) -> _Hierarchy:
     if not tree.names:
         raise ValueError("HIERARCHY holds no ROOT")
     return tree
+
+
+def _channel_count(tokens: list[str], at: int, joint: str) -> int:
+    """The count of the ``CHANNELS`` word at ``tokens[at]``: a whole number, not negative,
+    and not more than the words after it (a negative count would walk the tokens backwards
+    or not at all)."""
+    text = tokens[at + 1]
+    try:
+        count = int(text)
+    except ValueError:
+        raise ValueError(f"CHANNELS count {text!r} of joint {joint!r} is not a whole "
+                         "number") from None
+    if count < 0:
+        raise ValueError(f"CHANNELS count {count} of joint {joint!r} is negative")
+    left = len(tokens) - at - 2
+    if count > left:
+        raise ValueError(f"CHANNELS count {count} of joint {joint!r} runs past the HIERARCHY "
+                         f"({left} words follow it)")
+    return count
 
 
 def _header_value(line: str, key: str) -> str:

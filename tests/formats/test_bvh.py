@@ -128,6 +128,23 @@ def test_a_file_without_motion_section_is_a_format_error(tmp_path):
         bvh.read(path)
 
 
+@pytest.mark.parametrize("channels, problem", [
+    ("-2 Xposition", "-2 of joint 'Hips' is negative"),       # looped forever (i += 0)
+    ("-5 Xposition Yposition Zposition", "-5 of joint 'Hips' is negative"),   # walked back
+    ("5 Xposition Yposition Zposition", "5 of joint 'Hips' runs past the HIERARCHY "
+                                        "(4 words follow it)"),
+    ("three Xposition", "'three' of joint 'Hips' is not a whole number")])
+def test_a_channels_count_that_is_not_the_channels_named_is_a_bad_hierarchy(tmp_path,
+                                                                            channels,
+                                                                            problem):
+    path = tmp_path / "x.bvh"
+    path.write_text(f"HIERARCHY\nROOT Hips\n{{\n OFFSET 0 0 0\n CHANNELS {channels}\n}}\n"
+                    "MOTION\nFrames: 2\nFrame Time: 0.01\n0 0 0\n1 1 1\n")
+    with pytest.raises(FormatError) as caught:
+        bvh.read(path)
+    assert str(caught.value) == f"{path}: bad HIERARCHY: CHANNELS count {problem}"
+
+
 def test_fewer_frame_lines_than_declared_is_reported_as_truncated(tmp_path):
     path = write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0"] * 3, frames=5)
     expected = r"chain\.bvh: truncated: 3 complete frames read, 5 declared$"
