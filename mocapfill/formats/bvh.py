@@ -279,6 +279,8 @@ def _read_source(path: Path, scale: float) -> tuple[BvhSource, float]:
         raise FormatError(path, "MOTION section lacks 'Frames:' and 'Frame Time:'")
     try:
         declared = int(_header_value(lines[rest[0]], "frames"))
+        if declared < 0:
+            raise ValueError(f"'Frames: {declared}' is not a number of frames")
         frame_time_text = _header_value(lines[rest[1]], "frame time")
         frame_time = float(frame_time_text)
     except ValueError as exc:

@@ -226,6 +226,15 @@ def test_a_header_word_run_together_is_still_a_bad_header(tmp_path):
         bvh.read(path)
 
 
+def test_a_negative_frames_count_is_a_bad_header(tmp_path):
+    # was "too many frames: 0 complete frames read, -2 declared"
+    path = write_bvh(tmp_path, [], frames=-2)
+    with pytest.raises(FormatError) as caught:
+        bvh.read(path)
+    assert str(caught.value) == (f"{path}: bad MOTION header: 'Frames: -2' is not a number "
+                                 "of frames")
+
+
 def test_a_bvh_of_no_frames_reads_but_is_not_written(tmp_path):
     motion = bvh.read(write_bvh(tmp_path, []))
     assert motion.n_frames == 0
