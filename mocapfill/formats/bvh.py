@@ -167,6 +167,8 @@ def _parse_hierarchy(tokens: list[str]) -> _Hierarchy:
         if upper in ("ROOT", "JOINT"):
             if upper == "JOINT" and not stack:
                 raise ValueError("JOINT outside any ROOT")
+            if i + 1 == len(tokens):
+                raise ValueError(f"{word} without a name")
             pending = tree.add(tokens[i + 1], stack[-1] if stack else -1)
             i += 2
         elif upper == "END":
@@ -186,6 +188,8 @@ def _parse_hierarchy(tokens: list[str]) -> _Hierarchy:
                 raise ValueError("unbalanced '}'")
             stack.pop()
             i += 1
+        elif upper in ("OFFSET", "CHANNELS") and not stack:
+            raise ValueError(f"{word} outside any joint")
         elif upper == "OFFSET":
             tree.offsets[stack[-1]] = [float(t) for t in tokens[i + 1:i + 4]]
             i += 4
@@ -208,6 +212,8 @@ def _channel_count(tokens: list[str], at: int, joint: str) -> int:
     """The count of the ``CHANNELS`` word at ``tokens[at]``: a whole number, not negative,
     and not more than the words after it (a negative count would walk the tokens backwards
     or not at all)."""
+    if at + 1 == len(tokens):
+        raise ValueError(f"CHANNELS of joint {joint!r} without a count")
     text = tokens[at + 1]
     try:
         count = int(text)

@@ -145,6 +145,20 @@ def test_a_channels_count_that_is_not_the_channels_named_is_a_bad_hierarchy(tmp_
     assert str(caught.value) == f"{path}: bad HIERARCHY: CHANNELS count {problem}"
 
 
+@pytest.mark.parametrize("hierarchy, problem", [
+    ("OFFSET 0 0 0\nROOT Hips\n{\n}", "OFFSET outside any joint"),
+    ("ROOT Hips\n{\n}\nCHANNELS 0", "CHANNELS outside any joint"),
+    ("ROOT Hips\n{\nCHANNELS", "CHANNELS of joint 'Hips' without a count"),
+    ("ROOT", "ROOT without a name")])
+def test_a_hierarchy_word_without_its_joint_or_value_is_named(tmp_path, hierarchy, problem):
+    # each was "bad HIERARCHY: list index out of range"
+    path = tmp_path / "x.bvh"
+    path.write_text(f"HIERARCHY\n{hierarchy}\nMOTION\nFrames: 0\nFrame Time: 0.01\n")
+    with pytest.raises(FormatError) as caught:
+        bvh.read(path)
+    assert str(caught.value) == f"{path}: bad HIERARCHY: {problem}"
+
+
 def test_fewer_frame_lines_than_declared_is_reported_as_truncated(tmp_path):
     path = write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0"] * 3, frames=5)
     expected = r"chain\.bvh: truncated: 3 complete frames read, 5 declared$"
