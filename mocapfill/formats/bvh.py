@@ -114,12 +114,21 @@ class _Hierarchy:
         self.translation_columns: list[tuple[int, ...]] = []
         self.translation_axes: list[str] = []
         self.channel_names: list[str] = []
+        self._taken: set[str] = set()       # the names, for a lookup that is not a scan
+        self._copies: dict[str, int] = {}   # name -> the last n of a NAME_n given for it
 
     def add(self, name: str, parent: int) -> int:
-        base, copy = name, 1
-        while name in self.names:          # labels must be unique (two End Sites, ...)
-            copy += 1
-            name = f"{base}_{copy}"
+        """Add a joint; a name already taken becomes ``NAME_2``, ``NAME_3`` ..., the first
+        of those not taken (labels must be unique: two End Sites of one joint, ...). Names
+        only accumulate, so every ``NAME_n`` up to the last one given for NAME is taken and
+        the search goes on from there."""
+        if name in self._taken:
+            base, copy = name, self._copies.get(name, 1)
+            while name in self._taken:
+                copy += 1
+                name = f"{base}_{copy}"
+            self._copies[base] = copy
+        self._taken.add(name)
         self.names.append(name)
         self.parents.append(parent)
         self.offsets.append([0.0, 0.0, 0.0])
