@@ -180,9 +180,11 @@ def _read(path: Path, rate: float | None, units: str | None) -> Motion:
                    if name)
     if not labels:
         raise FormatError(path, "TRC file names no markers")
-    twice = next((name for k, name in enumerate(labels) if name in labels[:k]), None)
-    if twice is not None:
-        raise FormatError(path, f"marker name {twice!r} appears twice in the Frame# line")
+    seen: set[str] = set()
+    for name in labels:
+        if name in seen:
+            raise FormatError(path, f"marker name {name!r} appears twice in the Frame# line")
+        seen.add(name)
     start = names_at + 1
     if start < len(lines) and _is_axis_line(_body(lines, start), delimiter):
         start += 1
