@@ -142,7 +142,7 @@ _TIME = re.compile(r"^(time|time ?\((s|sec|secs|seconds)\)|time ?\[s\]|time_s)$"
                    re.IGNORECASE)
 _AXIS = re.compile(r"^(?P<name>.+?)[_:. ](?P<axis>[xyz])$", re.IGNORECASE)
 _KTK = re.compile(r"^(?P<name>.+)\[(?P<index>[0-3])\]$")
-_COMMENT_ITEM = re.compile(r"(\w+)\s*[:=]\s*([^,;]+)")
+_KEY_ENDS = re.compile("[:=]")
 
 
 def read(path: Path, *, rate: float | None = None, units: str | None = None,
@@ -510,7 +510,28 @@ def _body(lines: Sequence[str], index: int) -> str:
 
 
 def _comment_items(body: str) -> dict[str, str]:
-    return {k.lower(): v.strip() for k, v in _COMMENT_ITEM.findall(body.lstrip("#"))}
+    r"""The ``key: value`` (or ``key = value``) items of a ``#`` comment line, separated by
+    ``,`` or ``;`` (``# units: mm, rate: 120``).
+
+    In each item, the first ``:`` or ``=`` that follows a word (whitespace between them
+    allowed) and has text after it ends the key, that word, lower-cased; the value is the
+    rest of the item, stripped. These are the items ``re.findall(r"(\w+)\s*[:=]\s*
+    ([^,;]+)")`` gave, found without it: that expression backtracked over a long word
+    (``# aaa...``), in time growing with the square of its length.
+    """
+    items: dict[str, str] = {}
+    for item in body.lstrip("#").replace(";", ",").split(","):
+        start = 0               # where the text before the next ':' or '=' begins
+        for at in (match.start() for match in _KEY_ENDS.finditer(item)):
+            head = item[start:at].rstrip()
+            key = len(head)
+            while key and (head[key - 1].isalnum() or head[key - 1] == "_"):    # \w
+                key -= 1
+            if key < len(head) and at + 1 < len(item):
+                items[head[key:].lower()] = item[at + 1:].strip()
+                break
+            start = at + 1
+    return items
 
 
 def _rate(path: Path, comments: dict[str, str], from_times: float | None,

@@ -1,6 +1,7 @@
 """Marker CSV: plain, Vicon Nexus, headerless and Kinetics Toolkit layouts; patch writer."""
 from __future__ import annotations
 
+import re
 import tempfile
 from pathlib import Path
 
@@ -217,6 +218,33 @@ def test_comment_line_states_units_and_rate(tmp_path):
     path = write_text(tmp_path, "# units: m, rate: 200\nA_X,A_Y,A_Z\n1,2,3\n1,2,3\n")
     motion = csvfmt.read(path, units="mm", rate=50)
     assert (motion.units, motion.rate) == ("m", 200)
+
+
+@pytest.mark.parametrize("line, items", [
+    ("# units: mm, rate: 120", {"units": "mm", "rate": "120"}),
+    ("#Units=m;RATE = 100 Hz", {"units": "m", "rate": "100 Hz"}),
+    ("# made by: hand, rate: 50", {"by": "hand", "rate": "50"}),   # the word before ':'
+    ("# : x: 1, k = v = w", {"x": "1", "k": "v = w"}),
+    ("# a: , b:, c::d", {"a": "", "c": ":d"}),                     # b: nothing after ':'
+    ("# no items here", {})])
+def test_comment_items_are_key_separator_value(line, items):
+    assert csvfmt._comment_items(line) == items
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.text(alphabet="#aZ_1é٣ \t\u3000:=,;-.", max_size=30))
+def test_comment_items_are_those_the_regular_expression_found(body):
+    # The expression the reader used, fine on short lines (quadratic on a long word).
+    found = re.findall(r"(\w+)\s*[:=]\s*([^,;]+)", body.lstrip("#"))
+    assert csvfmt._comment_items(body) == {k.lower(): v.strip() for k, v in found}
+
+
+def test_a_comment_line_of_one_long_word_is_read_past(tmp_path):
+    # The regular expression backtracked over the word: 100,000 letters took over a minute.
+    path = write_text(tmp_path, "# " + "a" * 100_000 + ", units: m, rate: 50\n"
+                                "A_X,A_Y,A_Z\n1,2,3\n")
+    motion = csvfmt.read(path)
+    assert (motion.units, motion.rate, motion.n_frames) == ("m", 50, 1)
 
 
 @pytest.mark.parametrize("token", ["", "NaN", "nan", "NA", " nan "])
