@@ -537,7 +537,9 @@ def _comment_items(body: str) -> dict[str, str]:
 def _rate(path: Path, comments: dict[str, str], from_times: float | None,
           option: float | None) -> float:
     if "rate" in comments:
-        stated = re.sub(r"\s*hz$", "", comments["rate"], flags=re.IGNORECASE)   # "120 Hz"
+        stated = comments["rate"]
+        if stated[-2:].lower() == "hz":         # "120 Hz" (no pattern: "\s*hz$" backtracked)
+            stated = stated[:-2].rstrip()
         return frame_rate(path, stated, "the rate in the '#' comment line")
     for candidate in (from_times, option):
         if candidate is not None and candidate > 0:

@@ -812,6 +812,27 @@ def test_comment_rate_may_carry_its_unit(tmp_path):
     assert csvfmt.read(path).rate == 100
 
 
+@pytest.mark.parametrize("stated, rate", [("100 Hz", 100), ("100hz", 100), ("100 \t HZ", 100),
+                                          ("100", 100), ("1e2 hZ", 100)])
+def test_comment_rate_units_are_any_case_after_any_blanks(tmp_path, stated, rate):
+    path = write_text(tmp_path, f"# units: mm, rate: {stated}\nA_X,A_Y,A_Z\n1,2,3\n")
+    assert csvfmt.read(path).rate == rate
+
+
+@pytest.mark.parametrize("stated", ["Hz", "100 Hz Hz", "100 H z"])
+def test_a_comment_rate_of_hz_alone_or_twice_is_a_format_error(tmp_path, stated):
+    path = write_text(tmp_path, f"# units: mm, rate: {stated}\nA_X,A_Y,A_Z\n1,2,3\n")
+    with pytest.raises(FormatError, match="not a frame rate"):
+        csvfmt.read(path)
+
+
+def test_a_comment_rate_with_a_long_run_of_blanks_is_a_format_error(tmp_path):
+    # "\s*hz$" was tried from every blank of the run: 200,000 blanks took over a minute.
+    path = write_text(tmp_path, "# rate: 1" + " " * 200_000 + "x\nA_X,A_Y,A_Z\n1,2,3\n")
+    with pytest.raises(FormatError, match=r"the rate in the '#' comment line is '1 +x', not"):
+        csvfmt.read(path)
+
+
 @pytest.mark.parametrize("stated", ["inf", "0", "-120", "nan", "abc"])
 def test_a_comment_rate_that_is_not_a_positive_finite_number_is_a_format_error(tmp_path,
                                                                                 stated):
