@@ -2,6 +2,10 @@
 not written; the rate must be usable; damaged or foreign archives are named as such."""
 from __future__ import annotations
 
+import io
+import tracemalloc
+import zipfile
+
 import numpy as np
 import pytest
 
@@ -106,3 +110,94 @@ def test_a_foreign_or_unreadable_archive_is_named_as_such(tmp_path, content, wor
         npz.read(path)
     assert str(caught.value).startswith(f"{path}: {words}")
     assert "allow_pickle" not in str(caught.value)
+
+
+def npy_header(shape, descr="<f8") -> bytes:
+    buffer = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buffer, {"descr": descr, "fortran_order": False,
+                                                  "shape": shape})
+    return buffer.getvalue()
+
+
+def peak_bytes(function) -> int:
+    """The most memory allocated while ``function`` runs (numpy's arrays are traced)."""
+    tracemalloc.start()
+    try:
+        function()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def refused(path) -> str:
+    with pytest.raises(FormatError) as caught:
+        formats.read(path)
+    return str(caught.value)
+
+
+def test_a_zip_bomb_is_refused_from_its_headers_without_unpacking(tmp_path, monkeypatch):
+    # 1.5 MB of deflated zeros declaring a (64M, 1, 3) clip took 12 s and 3.2 GB to read;
+    # the limit is lowered here so that the archives stay small.
+    monkeypatch.setattr(npz, "EXPANSION_FLOOR", 1 << 20)
+    bomb = tmp_path / "bomb.npz"
+    frames = 200_000                    # 4.8 MB of zeros, deflated to about 5 KB
+    with zipfile.ZipFile(bomb, "w", zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr("positions.npy", npy_header((frames, 1, 3)) + bytes(frames * 24))
+    peak = peak_bytes(lambda: refused(bomb))
+    assert refused(bomb).startswith(f"{bomb}: its arrays unpack to 5 MB from ")
+    assert "refused as a zip bomb (more than 100 to 1 above 1 MB" in refused(bomb)
+    assert peak < 1 << 20
+    # A clip of as many frames with coordinates in it reads, stored as this writer stores
+    # it or deflated by numpy.
+    rng = np.random.default_rng(0)
+    clip = formats.read(save(tmp_path / "clip.npz")).replace(
+        positions=rng.normal(size=(frames, 2, 3)), observed=np.ones((frames, 2), bool),
+        labels=("A", "B"))
+    formats.write(clip, tmp_path / "stored.npz")
+    np.savez_compressed(tmp_path / "deflated.npz", positions=clip.positions)
+    for name in ("stored.npz", "deflated.npz"):
+        np.testing.assert_array_equal(formats.read(tmp_path / name).positions, clip.positions)
+
+
+@pytest.mark.parametrize("compression", [zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED],
+                         ids=["stored", "deflated"])
+def test_an_array_declaring_more_bytes_than_its_member_holds_is_refused_unallocated(
+        tmp_path, compression):
+    path = tmp_path / "cut.npz"
+    with zipfile.ZipFile(path, "w", compression) as archive:
+        archive.writestr("positions.npy", npy_header((10_000_000, 1, 3)) + bytes(64))
+    peak = peak_bytes(lambda: refused(path))
+    assert refused(path) == (f"{path}: positions.npy declares (10000000, 1, 3) float64 "
+                             "(240000000 bytes) but holds 64 bytes: cut short or not "
+                             "written by numpy")
+    assert peak < 1 << 20
+
+
+@pytest.mark.parametrize("key", ["rate", "first_frame"])
+def test_a_rate_or_first_frame_of_many_numbers_is_refused_before_it_is_loaded(tmp_path, key):
+    # A 200,000,000-element rate (1.5 MB deflated) used 1.5 GB before it was refused.
+    path = tmp_path / "clip.npz"
+    np.savez_compressed(path, positions=np.zeros((3, 2, 3)), **{key: np.zeros(1_000_000)})
+    peak = peak_bytes(lambda: refused(path))
+    assert refused(path) == f"{path}: {key} must hold one number, got 1000000"
+    assert peak < 1 << 20
+
+
+def test_arrays_whose_declared_shapes_disagree_are_refused_before_they_are_loaded(tmp_path):
+    path = tmp_path / "clip.npz"
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr("positions.npy", npy_header((3, 2, 3)) + bytes(144))
+        archive.writestr("observed.npy", npy_header((5_000_000, 1), "|b1")
+                         + bytes(5_000_000))
+    peak = peak_bytes(lambda: refused(path))
+    assert refused(path) == f"{path}: observed must be (3, 2), got (5000000, 1)"
+    assert peak < 1 << 20
+
+
+def test_an_oversized_header_is_named_as_such_not_as_python_objects(tmp_path):
+    path = tmp_path / "clip.npz"
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("positions.npy", b"\x93NUMPY\x02\x00" + (100_000).to_bytes(4, "little")
+                         + b"{" + b" " * 99_998 + b"\n")
+    assert refused(path) == (f"{path}: positions.npy has a header of 100000 bytes, more than "
+                             "the 10000 numpy reads: not an array numpy wrote")
