@@ -40,6 +40,18 @@ def whole_number(value: object) -> bool:
                                            and float(value).is_integer())
 
 
+# Frame numbers lie in [-FRAME_NUMBER_LIMIT, FRAME_NUMBER_LIMIT): what 64 bits hold.
+FRAME_NUMBER_LIMIT = 2**63
+
+
+def _number_text(value: int) -> str:
+    """A whole number for a message: its digits, or their count where they are many
+    (Python refuses to print more than 4300)."""
+    if abs(value) < 10**30:
+        return str(value)
+    return f"a number of about {int(abs(value).bit_length() * math.log10(2)) + 1} digits"
+
+
 @dataclass(frozen=True, eq=False)
 class Motion:
     """Marker trajectories of one clip.
@@ -68,7 +80,8 @@ class Motion:
         The file the clip was read from, if any.
     first_frame
         Frame number of the first frame as the file counts it (1 in most formats): a whole
-        number (numpy's integers and whole floats such as 3.0 are taken as the int).
+        number (numpy's integers and whole floats such as 3.0 are taken as the int), the
+        clip's frames numbered within 64 bits (from -2**63; the last at most 2**63 - 1).
 
     ``positions``, ``observed`` and ``fillable`` are read-only arrays the Motion owns (a
     change is a new Motion: :meth:`replace`, :meth:`with_positions`; copy them to edit).
@@ -124,8 +137,16 @@ class Motion:
                              f"or 0 when not known), got {self.rate!r}")
         if not whole_number(self.first_frame):
             raise ValueError(f"first_frame must be a whole number, got {self.first_frame!r}")
+        first_frame = int(self.first_frame)
+        # Frame numbers of 64 bits at most, as an NPZ stores them (a C3D's 32 bits are the
+        # C3D writer's, which numbers from 1 what does not fit): a first frame of 1e20 read
+        # from a TRC (or 1e300 from an NPZ) crashed the NPZ writer with an OverflowError.
+        last = FRAME_NUMBER_LIMIT - max(positions.shape[0], 1)
+        if not -FRAME_NUMBER_LIMIT <= first_frame <= last:
+            raise ValueError(f"first_frame must fit in 64 bits with the clip's frames "
+                             f"(-2**63 to {last}), got {_number_text(first_frame)}")
         object.__setattr__(self, "rate", rate)
-        object.__setattr__(self, "first_frame", int(self.first_frame))
+        object.__setattr__(self, "first_frame", first_frame)
 
     @property
     def n_frames(self) -> int:

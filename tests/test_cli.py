@@ -1500,3 +1500,17 @@ def test_running_out_of_memory_is_one_line_and_a_failed_file(clip_files, monkeyp
     result = run("info", clip_files / "gapped.npz")
     assert result.exit_code == 123
     assert result.stderr == "mocapfill: error: not enough memory to finish the command\n"
+
+
+def test_a_first_frame_beyond_64_bits_is_one_line_naming_the_file(tmp_path):
+    # repair and convert to an NPZ crashed with a traceback (exit 70) in the writer.
+    path = tmp_path / "huge.npz"
+    np.savez(path, positions=np.ones((5, 2, 3)), first_frame=np.float64(1e300))
+    for command in (["repair", path, tmp_path / "out.npz"],
+                    ["convert", path, tmp_path / "out.npz"]):
+        result = run(*command)
+        assert result.exit_code == 123, result.output
+        assert result.output.startswith(f"mocapfill: error: {path}: ")
+        assert "first_frame must fit in 64 bits" in result.output
+        assert "Traceback" not in result.output and result.output.count("\n") == 1
+        assert not (tmp_path / "out.npz").exists()

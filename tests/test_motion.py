@@ -119,6 +119,24 @@ def test_a_first_frame_given_as_a_numpy_integer_or_whole_float_is_that_int(tmp_p
     assert mocapfill.read(tmp_path / "moved.c3d").first_frame == 3
 
 
+@pytest.mark.parametrize("first_frame", [2**63 - 19, -2**63 - 1, 10**20, int(1e300)],
+                         ids=["last-frame-over", "under", "1e20", "1e300"])
+def test_a_first_frame_beyond_64_bits_is_refused(first_frame):
+    # 1e20 (a TRC's Frame#) and 1e300 (an NPZ's first_frame) crashed the NPZ writer with
+    # an OverflowError; the last frame of the clip's 20 must fit as well.
+    clip = smooth_clip(20, 2)
+    with pytest.raises(ValueError, match="first_frame must fit in 64 bits with the clip's "
+                                         r"frames \(-2\*\*63 to 9223372036854775788\), got "):
+        clip.replace(first_frame=first_frame)
+
+
+def test_a_first_frame_at_the_64_bit_limits_is_kept_by_an_npz(tmp_path):
+    for first_frame in (2**63 - 20, -2**63):
+        clip = smooth_clip(20, 2).replace(first_frame=first_frame)
+        mocapfill.write(clip, tmp_path / "clip.npz")
+        assert mocapfill.read(tmp_path / "clip.npz").first_frame == first_frame
+
+
 def test_a_motions_arrays_are_read_only_and_its_own():
     # A sample set to NaN in place stayed observed (a repair then failed with a misleading
     # SolverError); the flag is on the Motion's own arrays, never on the caller's.

@@ -482,3 +482,15 @@ def test_a_blank_first_frame_number_counts_back_from_the_next_one(tmp_path):
     motion = trc.read(write_text(tmp_path, trc_text(rows), "a.trc"))
     assert motion.first_frame == numbers[0] - 1
     assert motion.source.notes == ()
+
+
+def test_a_frame_number_beyond_64_bits_is_refused_naming_the_file(tmp_path):
+    # Frame# 1e20 was read, and the repair to an NPZ crashed with an OverflowError.
+    rows = [f"{frame}\t{row.split(chr(9), 1)[1]}" for frame, row in
+            zip(("1e20", "1e20", "1e20"), ROWS)]
+    path = write_text(tmp_path, trc_text(rows), "a.trc")
+    with pytest.raises(FormatError) as caught:
+        formats.read(path)
+    assert str(caught.value).startswith(f"{path}: ")
+    assert "first_frame must fit in 64 bits" in str(caught.value)
+    assert str(caught.value).endswith("got 100000000000000000000)")
