@@ -6,6 +6,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from mocapfill import formats, skeleton
 from mocapfill.motion import Motion
 from mocapfill.skeleton import (
     WRAP_POSITIVE,
@@ -21,6 +22,7 @@ from mocapfill.skeleton import (
     wrap_into,
     wrap_windows,
 )
+from tests.conftest import shared_file
 
 
 def rot(axis: str, degrees: float) -> np.ndarray:
@@ -138,6 +140,21 @@ def test_forward_kinematics_is_vectorised_over_frames():
     expected = np.stack([np.cos(np.radians(angles)), np.sin(np.radians(angles)),
                          np.zeros(7)], axis=1)
     np.testing.assert_allclose(positions[:, 1], expected, atol=1e-12)
+
+
+@pytest.mark.parametrize("relative", ["cmu/09_12.amc", "bvh/iclone-05_13-ccbase-60fps.bvh"])
+def test_forward_kinematics_by_blocks_of_frames_gives_the_same_positions(relative,
+                                                                        monkeypatch):
+    # FK runs by blocks of frames so that its rotations and temporaries stay bounded;
+    # a block is any run of frames, computed as the whole clip was.
+    state = formats.read(shared_file(relative)).source.state
+    monkeypatch.setattr(skeleton, "FK_BLOCK_FRAMES", 1 << 30)    # the clip in one block
+    whole = forward_kinematics(state.skeleton, state.values)
+    assert not np.isnan(whole).any()
+    for frames, points in ((7, 1 << 18), (1 << 14, 100), (1 << 14, 1 << 18)):
+        monkeypatch.setattr(skeleton, "FK_BLOCK_FRAMES", frames)
+        monkeypatch.setattr(skeleton, "FK_BLOCK_POINTS", points)
+        np.testing.assert_array_equal(forward_kinematics(state.skeleton, state.values), whole)
 
 
 def test_missing_root_rotation_hides_descendants_but_not_the_root():
