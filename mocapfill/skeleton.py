@@ -112,6 +112,47 @@ class Skeleton:
         return mask
 
 
+# What reading a skeleton clip takes, per frame: READ_BYTES_PER_POINT for each point (its
+# FK positions and their copies: NaN where missing, scaled, the Motion's own) and
+# READ_BYTES_PER_CHANNEL for each channel (the channel matrix, its mask, the state's copy),
+# above what tracemalloc measured of AMCs of 4,000 frames without bone lines: 101 points
+# and 306 channels 58 MiB (estimated 65), 201 points and 606 channels 103 MiB (129), 101
+# points and 6 channels 32 MiB (38). The file's lines are not counted: they grow with
+# its size, not with its frames × points. (The pipeline counts its windows' bytes so:
+# WINDOW_BYTES_PER_CELL.)
+READ_BYTES_PER_POINT = 96
+READ_BYTES_PER_CHANNEL = 24
+# A clip that would take more is refused before its matrices are built: an AMC frame
+# costs 2 bytes of file ("1\n", all its bones absent), and 100 KB of them against an ASF of
+# 2,000 bones took more than 4 GB. A 30-minute CMU clip at 120 Hz (31 points, 62
+# channels) takes 0.9 GB, a 60-fps iClone BVH of 141 points and 303 channels 57 minutes.
+MAX_READ_MEMORY = 4 << 30
+
+
+def read_memory(n_frames: int, n_points: int, n_channels: int) -> int:
+    """About how many bytes reading a clip of these sizes takes (see
+    :data:`READ_BYTES_PER_POINT`)."""
+    return n_frames * (n_points * READ_BYTES_PER_POINT + n_channels * READ_BYTES_PER_CHANNEL)
+
+
+def check_read_memory(path, n_frames: int, n_points: int, n_channels: int) -> None:
+    """A FormatError naming ``path`` and the sizes where a clip of ``n_frames`` frames,
+    ``n_points`` points and ``n_channels`` channels would take more than
+    :data:`MAX_READ_MEMORY` to read (called by the readers before forward kinematics)."""
+    from .errors import FormatError
+
+    needed = read_memory(n_frames, n_points, n_channels)
+    if needed > MAX_READ_MEMORY:
+        raise FormatError(path, f"{n_frames} frames of {n_points} points ({n_channels} "
+                                f"channels) would take about {_amount(needed)} to read, more "
+                                f"than the {_amount(MAX_READ_MEMORY)} a skeleton clip may take")
+
+
+def _amount(n_bytes: int) -> str:
+    return (f"{n_bytes / 2**30:.1f} GB" if n_bytes >= 1 << 30
+            else f"{n_bytes / 2**20:.1f} MB")
+
+
 def euler_matrices(axes: str, angles: np.ndarray, intrinsic: bool, *,
                    degrees: bool = True) -> np.ndarray:
     """Rotation matrices of per-frame Euler angles.

@@ -80,6 +80,7 @@ from ..motion import Motion
 from ..skeleton import (
     ChannelState,
     Skeleton,
+    check_read_memory,
     euler_matrices,
     motion_with_channels,
     patch_tokens,
@@ -540,6 +541,7 @@ def _parse_amc(path: Path, lines: tuple[str, ...], skeleton: Skeleton,
             cut_line, unread = i, columns[len(read):]
     if frame < 0:
         raise FormatError(path, "no frames (no line holding a frame number)")
+    check_read_memory(path, frame + 1, skeleton.n_joints, skeleton.n_channels)
     values = _scattered((frame + 1, skeleton.n_channels), np.nan, cell_frames, cell_columns,
                         cell_values, repeated)
     if np.isinf(values).any():

@@ -53,7 +53,14 @@ import numpy as np
 
 from ..errors import FormatError
 from ..motion import Motion
-from ..skeleton import ChannelState, Skeleton, motion_with_channels, patch_tokens, positions_edited
+from ..skeleton import (
+    ChannelState,
+    Skeleton,
+    check_read_memory,
+    motion_with_channels,
+    patch_tokens,
+    positions_edited,
+)
 from . import skeleton_input_needed
 from ._patch import AsRead, as_read
 from ._text import LATIN1_BOM, finite_number, last_value_cut, latin1_label
@@ -322,6 +329,7 @@ def _read_source(path: Path, scale: float) -> tuple[BvhSource, float]:
         what = "truncated" if len(rows) < declared else "too many frames"
         raise FormatError(path, f"{what}: {len(rows)} complete frames read, {declared} "
                                 f"declared{cut_short}")
+    check_read_memory(path, len(rows), len(tree.names), n_channels)
     try:
         values = np.array(rows, dtype=np.float64).reshape(len(rows), n_channels)
     except ValueError as exc:

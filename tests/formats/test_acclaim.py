@@ -246,6 +246,53 @@ def test_frames_without_bone_lines_cost_a_few_hundred_bytes_each_to_read(tmp_pat
     assert peak < 500 * frames
 
 
+def fan(tmp_path: Path, bones: int, frames: int, dof: str = "rx ry rz") -> Path:
+    """An ASF of ``bones`` bones under the root and an AMC of ``frames`` frames, the first
+    holding the root alone, the others no bone line ("1\\n", 2 bytes each)."""
+    blocks = "".join(f"  begin\n     name b{k}\n     direction 0 1 0\n     length 1\n"
+                     f"     axis 0 0 0 XYZ\n" + (f"     dof {dof}\n" if dof else "") + "  end\n"
+                     for k in range(bones))
+    hierarchy = " ".join(f"b{k}" for k in range(bones))
+    (tmp_path / "x.asf").write_text(ONE_BONE_ASF.split(":bonedata")[0] + ":bonedata\n"
+                                    + blocks + f":hierarchy\n  begin\n    root {hierarchy}\n"
+                                    "  end\n")
+    amc = tmp_path / "x.amc"
+    amc.write_text(":DEGREES\n1\nroot 0 0 0 0 0 0\n" + "1\n" * (frames - 1))
+    return amc
+
+
+def test_a_clip_whose_points_would_take_more_than_4_gb_is_refused_before_it_is_built(
+        tmp_path):
+    # 100 KB of frames without bone lines against an ASF of 2,000 bones took more than
+    # 4 GB: the channel matrix, then 9 floats of rotation a joint and frame in FK.
+    amc = fan(tmp_path, 2000, 50_001)
+    formats.read(write_pair(tmp_path, [frame(1)]))     # the reader's modules, imported
+    tracemalloc.start()
+    try:
+        with pytest.raises(FormatError) as caught:
+            formats.read(amc)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert str(caught.value) == (f"{amc}: 50001 frames of 2001 points (6006 channels) would "
+                                 "take about 15.7 GB to read, more than the 4.0 GB a "
+                                 "skeleton clip may take")
+    assert peak < 64 << 20
+
+
+@pytest.mark.parametrize(("bones", "dof"), [(100, "rx ry rz"), (100, ""), (200, "rx ry rz")])
+def test_the_memory_a_read_is_refused_for_bounds_what_reading_takes(tmp_path, bones, dof):
+    from mocapfill.skeleton import read_memory
+
+    amc = fan(tmp_path, bones, 4000, dof)
+    formats.read(write_pair(tmp_path, [frame(1)]))     # the reader's modules, imported
+    peak = peak_bytes(lambda: formats.read(amc))
+    motion = formats.read(amc)
+    channels = 6 + bones * len(dof.split())
+    assert motion.source.state.values.shape == (4000, channels)
+    assert peak <= read_memory(4000, bones + 1, channels)
+
+
 def test_a_bone_line_given_twice_in_a_frame_counts_as_its_last(tmp_path):
     amc = write_pair(tmp_path, [frame(1, arm="10"), frame(2, arm="20") + "arm 30\n",
                                 frame(3, arm="40")])

@@ -554,3 +554,21 @@ def test_a_position_file_written_from_a_bvh_keeps_its_positions_and_notes_the_un
     back = formats.read(out)
     assert back.units == "unknown"
     np.testing.assert_allclose(back.positions, motion.positions, rtol=1e-6)
+
+
+def test_a_clip_whose_points_would_take_more_than_the_limit_is_refused_naming_it(tmp_path,
+                                                                                  monkeypatch):
+    # As for an AMC (End Sites are points no channel costs a byte of file); the limit is
+    # lowered here so that the file stays small: a frame of 3 points and 9 channels takes
+    # about 504 bytes.
+    from mocapfill import skeleton
+
+    monkeypatch.setattr(skeleton, "MAX_READ_MEMORY", 1 << 20)
+    path = write_bvh(tmp_path, ["0 0 0 0 0 0 0 0 0"] * 2100)
+    with pytest.raises(FormatError) as caught:
+        formats.read(path)
+    assert str(caught.value) == (f"{path}: 2100 frames of 3 points (9 channels) would take "
+                                 "about 1.0 MB to read, more than the 1.0 MB a skeleton clip "
+                                 "may take")
+    monkeypatch.setattr(skeleton, "MAX_READ_MEMORY", 2 << 20)
+    assert formats.read(path).n_frames == 2100
