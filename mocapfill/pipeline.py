@@ -876,6 +876,21 @@ def _fill_channel_ends(column: np.ndarray, observed: np.ndarray, start: int, sto
                 out=column[start:stop])
 
 
+class _MovingChannels(dict):
+    """joint -> the channel columns that move it (``skeleton.moving_channels``), each
+    found once, when first asked for."""
+
+    def __init__(self, skeleton) -> None:
+        super().__init__()
+        self.skeleton = skeleton
+
+    def __missing__(self, joint: int) -> np.ndarray:
+        from .skeleton import moving_channels
+
+        self[joint] = found = moving_channels(self.skeleton, joint)
+        return found
+
+
 def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
     """Fill a skeleton clip (BVH, AMC) in channel space: the joint angles themselves.
 
@@ -895,7 +910,7 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
     moving the point are put back over that gap, as for a jump.
     """
     from . import formats
-    from .skeleton import Skeleton, observed_points
+    from .skeleton import Skeleton
 
     started = time.perf_counter()
     rejected: set[tuple[int, int]] = set()
@@ -928,8 +943,8 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
             if _gap_status(gap, motion, options) == FILLED:
                 fill[start:stop, column] = True
     before = find_gaps(motion)
-    # moves[c, j]: channel c moves joint j
-    moves = ~observed_points(skeleton, ~np.eye(values.shape[1], dtype=bool))
+    # moves[j]: the channels that move joint j, found for the joints with gaps only
+    moves = _MovingChannels(skeleton)
     refused = np.zeros_like(fill)       # fills the format kept out (with_channels)
     windowless = np.zeros_like(fill)    # runs no window of a long clip could fill
     if fill.any():
@@ -962,7 +977,7 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
                                                         options)) if jumps]
         if jumping:
             for gap in jumping:
-                fill[gap.start:gap.stop, moves[:, gap.marker]] = False
+                fill[gap.start:gap.stop, moves[gap.marker]] = False
             repaired = module.with_channels(motion, np.where(fill, solved, values),
                                             observed | fill)
             rejected = {(g.marker, g.start) for g in done
@@ -978,7 +993,7 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
                           if repaired.observed[g.start:g.stop, g.marker].any()
                           and not repaired.observed[g.start:g.stop, g.marker].all()]:
             for gap in partial:
-                fill[gap.start:gap.stop, moves[:, gap.marker]] = False
+                fill[gap.start:gap.stop, moves[gap.marker]] = False
             repaired = module.with_channels(motion, np.where(fill, solved, values),
                                             observed | fill)
     else:
@@ -989,9 +1004,9 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
         status = FILLED if done else _gap_status(gap, motion, options)
         if status == FILLED and not done:
             status = (REJECTED_JUMP if (gap.marker, gap.start) in rejected
-                      else LEFT_CUT if refused[gap.start:gap.stop, moves[:, gap.marker]].any()
+                      else LEFT_CUT if refused[gap.start:gap.stop, moves[gap.marker]].any()
                       else LEFT_NO_WINDOW
-                      if windowless[gap.start:gap.stop, moves[:, gap.marker]].any()
+                      if windowless[gap.start:gap.stop, moves[gap.marker]].any()
                       else LEFT_CHANNELS)
         outcomes.append(GapOutcome(gap, status, options.method))
     return RepairResult(repaired, outcomes, time.perf_counter() - started)
