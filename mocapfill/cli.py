@@ -94,8 +94,12 @@ class _Group(click.Group):
             name = f"{exc.filename}: " if exc.filename else ""
             _fail(f"{name}{exc.strerror or exc}", EXIT_FAILED)
         except MemoryError:
-            # (A file declaring more than fits is named as it is read: formats.read.)
-            _fail("not enough memory to finish the command", EXIT_FAILED)
+            # (A file declaring more than fits is named as it is read: formats.read.) The
+            # command's input is named, as a batch names the file it failed on.
+            from .errors import named
+
+            _fail(f"{named(ctx.meta.get(_INPUT))}not enough memory to finish the command",
+                  EXIT_FAILED)
         except (click.ClickException, click.exceptions.Exit, click.Abort):
             raise
         except Exception as exc:
@@ -174,10 +178,17 @@ _zero_option = click.option(
          "for Qualisys C3D files, which store gaps that way, off for other files.")
 
 
+# The key under which a command's context records its input (the first file it reads: IN,
+# score's TRUTH), which an error without a file of its own names (running out of memory).
+_INPUT = "mocapfill.input"
+
+
 def _read(path: Path, zero_is_missing: str = "auto", notes: list[str] | None = None):
     """Read IN; a note that ``--zero-is-missing on`` cannot apply to its format is printed
     now, or added to ``notes`` (a command that prints its notes once it has succeeded)."""
     from . import formats
+
+    click.get_current_context().meta.setdefault(_INPUT, path)
 
     if path.suffix.lower() in formats.ZERO_FORMATS:
         return formats.read(path, zero_is_missing=zero_is_missing)

@@ -1490,14 +1490,35 @@ def test_an_unexpected_exception_is_an_internal_error_with_its_own_exit_code(
     assert not (clip_files / "out.npz").exists()
 
 
-def test_running_out_of_memory_is_one_line_and_a_failed_file(clip_files, monkeypatch):
+@pytest.mark.parametrize(("module", "function", "args"), [
+    ("formats", "read", ["info", "gapped.npz"]),
+    ("pipeline", "repair", ["repair", "gapped.npz", "out.npz"]),
+    ("metrics", "score", ["score", "truth.npz", "gapped.npz"]),
+])
+def test_running_out_of_memory_is_one_line_naming_the_input_and_a_failed_file(
+        clip_files, monkeypatch, module, function, args):
+    # It named no file (a batch names the file it failed on).
+    import importlib
+
+    def too_big(*args, **kwargs):
+        raise MemoryError
+
+    monkeypatch.setattr(importlib.import_module(f"mocapfill.{module}"), function, too_big)
+    result = run(*[clip_files / a if a.endswith(".npz") else a for a in args])
+    assert result.exit_code == 123
+    assert result.stderr == (f"mocapfill: error: {clip_files / args[1]}: not enough memory "
+                             "to finish the command\n")
+    assert not (clip_files / "out.npz").exists()
+
+
+def test_running_out_of_memory_before_any_file_is_read_names_none(monkeypatch):
     from mocapfill import cli
 
     def too_big(*args, **kwargs):
         raise MemoryError
 
     monkeypatch.setattr(cli, "_read", too_big)
-    result = run("info", clip_files / "gapped.npz")
+    result = run("info", "gapped.npz")
     assert result.exit_code == 123
     assert result.stderr == "mocapfill: error: not enough memory to finish the command\n"
 
