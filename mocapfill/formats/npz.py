@@ -104,11 +104,16 @@ def _members(archive: zipfile.ZipFile, path: Path) -> dict[str, _Member]:
     """The arrays of :data:`ARRAYS` the archive holds, declared shapes checked against each
     other and the bytes they unpack to against those they are stored in."""
     names = set(archive.namelist())
+    size = path.stat().st_size
     members = {}
     for key in ARRAYS:
         name = key if key in names else f"{key}.npy"
         if name in names:
-            members[key] = _header(archive, archive.getinfo(name), path)
+            info = archive.getinfo(name)
+            if info.compress_size > size:       # the zip bomb check's denominator
+                raise FormatError(path, f"{name} declares {info.compress_size} bytes stored "
+                                        f"in an archive of {size}: not a valid .npz archive")
+            members[key] = _header(archive, info, path)
     if "positions" not in members:
         raise FormatError(path, "missing array 'positions'")
     shape = members["positions"].shape

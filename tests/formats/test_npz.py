@@ -159,6 +159,20 @@ def test_a_zip_bomb_is_refused_from_its_headers_without_unpacking(tmp_path, monk
         np.testing.assert_array_equal(formats.read(tmp_path / name).positions, clip.positions)
 
 
+def test_a_member_declaring_more_stored_bytes_than_the_archive_holds_is_refused(tmp_path):
+    # Its stored size is what the zip bomb check divides by: a lie there let a small
+    # archive declare any clip.
+    path = tmp_path / "lie.npz"
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr("positions.npy", npy_header((200_000, 1, 3)) + bytes(4_800_000))
+    data = bytearray(path.read_bytes())
+    central = data.index(b"PK\x01\x02")
+    data[central + 20:central + 24] = (10_000_000).to_bytes(4, "little")   # compress_size
+    path.write_bytes(bytes(data))
+    assert refused(path) == (f"{path}: positions.npy declares 10000000 bytes stored in an "
+                             f"archive of {len(data)}: not a valid .npz archive")
+
+
 @pytest.mark.parametrize("compression", [zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED],
                          ids=["stored", "deflated"])
 def test_an_array_declaring_more_bytes_than_its_member_holds_is_refused_unallocated(
