@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import re
+import tracemalloc
 
 import numpy as np
 
@@ -54,3 +55,13 @@ def assert_only_nan_tokens_replaced(gapped: str, patched: str) -> int:
                 assert new_part == old_part, (f"line {number}: {old_part!r} became "
                                               f"{new_part!r} (not a gap)")
     return replaced
+
+
+def peak_bytes(function) -> int:
+    """The most memory allocated while ``function`` runs (numpy's arrays are traced)."""
+    tracemalloc.start()
+    try:
+        function()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()

@@ -4,7 +4,6 @@ from __future__ import annotations
 import errno
 import os
 import re
-import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +16,7 @@ from mocapfill.motion import from_matrix
 from tests.conftest import shared_file
 from tests.formats.test_bvh import fill_by_interpolation
 from tests.formats.test_csv import assert_every_cut_reads_as_a_prefix
+from tests.helpers import peak_bytes
 from tests.test_skeleton import rot
 
 # Keywords deliberately out of the usual order, a comment, commas, wrapped limits, a bone
@@ -198,16 +198,6 @@ def test_a_hierarchy_reaching_a_bone_twice_or_not_at_all_is_a_format_error(tmp_p
     assert str(caught.value) == f"{asf}: bad ASF: {words}"
 
 
-def peak_bytes(function) -> int:
-    """The most memory allocated while ``function`` runs (numpy's arrays are traced)."""
-    tracemalloc.start()
-    try:
-        function()
-        return tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-
-
 ONE_BONE_ASF = """:units
   length 0.45
   angle deg
@@ -267,14 +257,15 @@ def test_a_clip_whose_points_would_take_more_than_4_gb_is_refused_before_it_is_b
     # 4 GB: the channel matrix, then 9 floats of rotation a joint and frame in FK.
     amc = fan(tmp_path, 2000, 50_001)
     formats.read(write_pair(tmp_path, [frame(1)]))     # the reader's modules, imported
-    tracemalloc.start()
-    try:
-        with pytest.raises(FormatError) as caught:
+    caught = []
+
+    def refused():
+        with pytest.raises(FormatError) as raised:
             formats.read(amc)
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-    assert str(caught.value) == (f"{amc}: 50001 frames of 2001 points (6006 channels) would "
+        caught.append(raised)
+
+    peak = peak_bytes(refused)
+    assert str(caught[0].value) == (f"{amc}: 50001 frames of 2001 points (6006 channels) would "
                                  "take about 15.7 GB to read, more than the 4.0 GB a "
                                  "skeleton clip may take")
     assert peak < 64 << 20

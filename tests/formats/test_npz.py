@@ -3,7 +3,6 @@ not written; the rate must be usable; damaged or foreign archives are named as s
 from __future__ import annotations
 
 import io
-import tracemalloc
 import zipfile
 
 import numpy as np
@@ -12,6 +11,8 @@ import pytest
 from mocapfill import formats
 from mocapfill.errors import FormatError
 from mocapfill.formats import npz
+
+from ..helpers import peak_bytes
 
 
 def save(path, n_frames: int = 3, rate: float = 100.0):
@@ -117,16 +118,6 @@ def npy_header(shape, descr="<f8") -> bytes:
     np.lib.format.write_array_header_1_0(buffer, {"descr": descr, "fortran_order": False,
                                                   "shape": shape})
     return buffer.getvalue()
-
-
-def peak_bytes(function) -> int:
-    """The most memory allocated while ``function`` runs (numpy's arrays are traced)."""
-    tracemalloc.start()
-    try:
-        function()
-        return tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
 
 
 def refused(path) -> str:
