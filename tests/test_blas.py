@@ -16,9 +16,10 @@ ROOT = Path(__file__).resolve().parents[1]
 # Run in a fresh interpreter without the BLAS variables (the command line and the
 # measuring scripts set them; a program importing mocapfill usually does not). BLAS is
 # put on 3 threads first, so that the checks mean something on a one-core machine too.
-SCRIPT = r"""
-import json, sys, threading
-import numpy as np
+# Both scripts start so, then spy on the repair's solve (noting the BLAS thread counts
+# while it runs) and read the clip.
+PRELUDE = r"""
+import json, sys
 import scipy.linalg
 from threadpoolctl import threadpool_info, threadpool_limits
 
@@ -29,10 +30,7 @@ def counts():
 
 import mocapfill
 from mocapfill import pipeline
-from mocapfill._blas import single_threaded
-from mocapfill.solvers._threads import run_all
 
-out = {"before": counts()}
 during = []
 solve = pipeline._complete_clip
 
@@ -42,6 +40,14 @@ def spy(*args, **kwargs):
 
 pipeline._complete_clip = spy
 motion = mocapfill.read(sys.argv[1])
+"""
+
+SCRIPT = PRELUDE + r"""
+import threading
+from mocapfill._blas import single_threaded
+from mocapfill.solvers._threads import run_all
+
+out = {"before": counts()}
 mocapfill.repair(motion, mocapfill.RepairOptions(method="linear"))
 out["repair"] = during
 out["after_repair"] = counts()
@@ -96,29 +102,9 @@ print(json.dumps(out))
 # ThreadPoolExecutor (as a GUI or a service calls it). BLAS is put on 3 threads first,
 # through threadpoolctl from the main thread, which then ignores a limit that another
 # thread sets through it (3.8): mocapfill must set OpenBLAS's count itself.
-IN_A_THREAD = r"""
-import hashlib, json, sys, time
+IN_A_THREAD = PRELUDE + r"""
+import hashlib, time
 from concurrent.futures import ThreadPoolExecutor
-import scipy.linalg
-from threadpoolctl import threadpool_info, threadpool_limits
-
-threadpool_limits(3, user_api="blas")
-
-def counts():
-    return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
-
-import mocapfill
-from mocapfill import pipeline
-
-during = []
-solve = pipeline._complete_clip
-
-def spy(*args, **kwargs):
-    during.append(counts())
-    return solve(*args, **kwargs)
-
-pipeline._complete_clip = spy
-motion = mocapfill.read(sys.argv[1])
 
 def repair():
     start = time.perf_counter()
