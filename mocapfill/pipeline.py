@@ -335,7 +335,8 @@ def windows_at_once(rows: int, window_frames: int) -> int:
 
 
 def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
-                  solver_options: dict, borrowed: list | None = None):
+                  solver_options: dict, borrowed: list | None = None, *,
+                  fill_ends: bool = True):
     """The method's fill of ``matrix`` in the unit scale, back in the clip's units.
 
     With ``borrowed`` (a list, possibly empty) the method's ``windowed`` form is called
@@ -350,6 +351,8 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
         # marker by its own mean position). The default's rigid candidate and
         # rigid-partner check, and the PCA method's distance weights, add it back.
         solver_options = {**solver_options, "centre": scale.centre[:, 0] / scale.scale}
+    if not fill_ends and getattr(fn, "validates_ends", False):
+        solver_options = {**solver_options, "validate_ends": False}
     validation = None
     try:
         if borrowed is not None:
@@ -536,7 +539,8 @@ def _window_trust(observed: np.ndarray, at_start: bool, at_end: bool) -> np.ndar
 
 def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trnn", *,
                     window_frames: int = WINDOW_FRAMES, window_overlap: int = WINDOW_OVERLAP,
-                    overwrite: bool = False, **solver_options) -> np.ndarray:
+                    overwrite: bool = False, fill_ends: bool = True,
+                    **solver_options) -> np.ndarray:
     """Complete a (3·markers × frames) matrix in the unit-invariant scale.
 
     Clips longer than ``window_frames`` are solved in windows overlapping by
@@ -550,7 +554,11 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
     Observed entries of the result equal ``matrix`` exactly. With ``overwrite`` the fills
     are written into ``matrix`` itself (its missing entries), which is returned: no second
     clip-sized array. ``solver_options`` are the method's, refused (ParameterError) as
-    :class:`RepairOptions` refuses them: unknown to the method, or out of range.
+    :class:`RepairOptions` refuses them: unknown to the method, or out of range. Gaps at the
+    clip's ends are filled either way; ``fill_ends`` False says their fills will not be
+    used (``repair`` without ``--ends extrapolate``), so that a method that validates its
+    end-gap fills (the default, whose end stand-ins hide data it would otherwise use for
+    the interior gaps) does not.
     """
     if "centre" in solver_options:
         raise ParameterError("'centre' is not an option: the rows' centres are the unit "
@@ -565,7 +573,7 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
     n = matrix.shape[1]
     out = matrix if overwrite else np.array(matrix, dtype=np.float64)
     if not window_frames or n <= window_frames:
-        np.copyto(out, _solve_scaled(matrix, observed, method, solver_options),
+        np.copyto(out, _solve_scaled(matrix, observed, method, solver_options, fill_ends=fill_ends),
                   where=~observed)
         return out
     if not 0 < window_overlap < window_frames // 2:
@@ -622,7 +630,8 @@ def _complete_clip(motion: Motion, matrix: np.ndarray, observed: np.ndarray,
                              f"({limit}: the smaller of {rows} and frames)")
     try:
         return complete_matrix(matrix, observed, options.method, rate=motion.rate,
-                               overwrite=True, **options.solver_options)
+                               overwrite=True, fill_ends=options.ends == "extrapolate",
+                               **options.solver_options)
     except SolverError as exc:
         raise SolverError(f"{named(motion.path)}{exc}") from None
 

@@ -2,7 +2,8 @@
 frame), which ``--ends extrapolate`` fills with the default method's TrNN candidate.
 
 Per-coordinate RMS error (mm) on the end-gap samples / the interior gap samples, seeds 1
-and 2, each candidate run alone on the unit-RMS clip as the blend runs it. Cases: the
+and 2, each candidate run alone on the unit-RMS clip as the blend runs it, and the default
+method's fill (``complete_matrix``, every gap filled). Cases: the
 paper's random loss (``mr 0.6``), or ``end L``: 5 random markers hidden over the first or
 last L frames. Needs ../shared/data/cmu. Example (docs/results.md, thirty-fifth session):
 
@@ -22,6 +23,7 @@ import numpy as np  # noqa: E402 (after the BLAS setting)
 
 from mocapfill.bench import _cmu_motion  # noqa: E402
 from mocapfill.gaps import simulate_gaps  # noqa: E402
+from mocapfill.pipeline import complete_matrix  # noqa: E402
 from mocapfill.scaling import UnitScale  # noqa: E402
 from mocapfill.solvers import gapwise  # noqa: E402
 from mocapfill.solvers.gaussian import gap_fill as gaussian_fill  # noqa: E402
@@ -62,8 +64,10 @@ def main(clip: str, kind: str, value: float) -> None:
         candidates = {"trnn": complete_lowrank, "gaussian": gaussian_fill, "tsmc": tsmc,
                       "pca": short_runs_first(partial(pca_fill, centre=centre))}
         line = []
-        for name, fill in candidates.items():
-            errors = (scale.inverse(fill(X, observed)) - T) ** 2
+        fills = {name: scale.inverse(fill(X, observed)) for name, fill in candidates.items()}
+        fills["default"] = complete_matrix(M, observed, "trnn")
+        for name, filled in fills.items():
+            errors = (filled - T) ** 2
             within = f"{np.sqrt(errors[inside].mean()):.3f}" if inside.any() else "–"
             line.append(f"{name} {np.sqrt(errors[ends].mean()):.2f} / {within}")
         print(f"{clip} {kind} {value:g} seed {seed}: {int(ends.sum())} end samples;",

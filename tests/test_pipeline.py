@@ -636,6 +636,37 @@ def _fake_windowed(matrix, observed, *, borrowed, **options):
 fake_windowed_method.windowed = _fake_windowed
 
 
+ENDS_SEEN: list = []
+
+
+def fake_end_validating_method(matrix, observed, **options):
+    from mocapfill.solvers.interp import spline
+
+    ENDS_SEEN.append(options.get("validate_ends", "not given"))
+    return spline(matrix, observed)
+
+
+fake_end_validating_method.validates_ends = True
+
+
+@pytest.mark.parametrize("ends, told", [("leave", False), ("hold", False),
+                                        ("extrapolate", "not given")])
+def test_a_method_validating_end_gaps_is_told_when_their_fills_will_not_be_used(
+        monkeypatch, ends, told):
+    # The default hides stand-ins at the clip's ends to weigh its end-gap fills; where the
+    # repair leaves or holds the end gaps, that would only cost its interior fills data.
+    from mocapfill import pipeline
+
+    monkeypatch.setitem(METHODS, "ends", "tests.test_pipeline:fake_end_validating_method")
+    ENDS_SEEN.clear()
+    clip = with_gap(with_gap(smooth_clip(300, 4), 0, 0, 20), 1, 100, 120)
+    repair(clip, RepairOptions(method="ends", ends=ends))
+    matrix, observed = clip.matrix()
+    pipeline.complete_matrix(matrix, observed, "ends")
+    pipeline.complete_matrix(matrix, observed, "spline", fill_ends=False)   # no such option
+    assert ENDS_SEEN == [told, "not given"]
+
+
 @pytest.mark.parametrize("threads", ["1", "2", "3"])
 def test_windows_between_validated_ones_borrow_their_neighbours_validations(monkeypatch,
                                                                             threads, tmp_path):

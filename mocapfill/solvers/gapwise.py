@@ -718,6 +718,80 @@ def pseudo_gaps(observed: np.ndarray, gapset: GapSet, rng: np.random.Generator, 
     return chosen
 
 
+def end_gaps(observed: np.ndarray, groups: np.ndarray) -> list[tuple[int, int, int]]:
+    """Gaps touching the clip's first or last frame (not a group missing throughout)."""
+    n = observed.shape[1]
+    return [(g, a, b) for g, rows in enumerate(groups)
+            for a, b in missing_runs(observed[rows[0]])
+            if (a == 0) != (b == n)]
+
+
+END_STAND_INS = 2
+END_FRACTION = 0.025
+
+
+def end_stand_ins(train: np.ndarray, groups: np.ndarray, ends: list[tuple[int, int, int]],
+                  rng: np.random.Generator, *, repeats: int = END_STAND_INS,
+                  fraction: float = END_FRACTION) -> list[tuple[int, int, int]]:
+    """Stand-ins for the end gaps ``ends``: for each, up to ``repeats`` other groups
+    observed (in ``train``, the mask with the interior stand-ins hidden) over the same
+    frames at the same end and on the frame beside them, hidden there, so that each is an
+    end gap of the real one's length; at most ``fraction`` of the observed samples, one
+    stand-in per group at each end.
+
+    The default's fill of an end gap was its TrNN candidate's alone, unvalidated and with
+    nothing to join at the open end (``scripts/end_gaps.py``: 48–91 mm on 10–60-frame end
+    gaps of CMU clips where PCA's fill erred 1.5–13 mm; on random loss 2–25 mm where
+    TSMC's erred 1.4–4.8): the stand-ins let validation weigh the candidates there.
+    """
+    n = train.shape[1]
+    seen = train[groups[:, 0]]
+    budget = fraction * seen.sum()
+    used = 0
+    taken = {0: set(), n: set()}
+    chosen = []
+    for index in rng.permutation(len(ends)).tolist():
+        g, a, b = ends[index]
+        length = b - a
+        at_start = a == 0
+        if length + 1 >= n:
+            continue
+        frames = slice(0, length + 1) if at_start else slice(n - length - 1, n)
+        fitting = np.flatnonzero(seen[:, frames].all(axis=1))
+        side = taken[0 if at_start else n]
+        fitting = [h for h in fitting.tolist() if h != g and h not in side]
+        for h in rng.permutation(fitting)[:repeats].tolist() if fitting else []:
+            if used + length > budget:
+                return chosen
+            side.add(h)
+            used += length
+            chosen.append((h, 0, length) if at_start else (h, n - length, n))
+    return chosen
+
+
+# The source of an end gap's stand-in in :func:`blend`'s list (interior ones name their
+# real gap's index), and the error given to a candidate's non-finite fill of one.
+END_SOURCE = -1
+UNFILLED_ERROR = 1e6
+
+
+def _blend_end_gaps(out: np.ndarray, fills: list[np.ndarray | None],
+                    ends: list[tuple[int, int, int]], groups: np.ndarray,
+                    weights: dict[int, np.ndarray]) -> None:
+    """Fill each end gap of ``out`` (in place) with the candidates' fills in the weights of
+    its length class (the nearest with evidence), over the candidates run whose fill there
+    is finite."""
+    for g, a, b in ends:
+        w = _weights_for(length_class(b - a), weights, None).copy()
+        rows = groups[g][:, None]
+        segments = {k: fills[k][rows, a:b] for k in np.flatnonzero(w > 0).tolist()
+                    if fills[k] is not None}
+        w[[k for k in range(w.size) if k not in segments
+           or not np.isfinite(segments[k]).all()]] = 0.0
+        if w.sum() > 0:
+            out[rows, a:b] = sum(w[k] / w.sum() * segments[k] for k in np.flatnonzero(w > 0))
+
+
 # A stand-in's evidence is kept as (EᵀE, number of samples) for its error matrix E
 # (samples × candidates): the squared error of any blend w is wᵀ EᵀE w, so sums of these
 # small Gram matrices serve every fit below without stacking the samples again. A list of
@@ -1266,7 +1340,8 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
           optional: tuple[str, ...] = (), validators: dict[str, Candidate] | None = None,
           once: tuple[str, ...] = (), centre: np.ndarray | None = None,
           local_checks: dict[str, Callable[[np.ndarray], np.ndarray]] | None = None,
-          temporal: tuple[str, ...] = ()) -> tuple[np.ndarray, BlendReport]:
+          temporal: tuple[str, ...] = (), validate_ends: bool = True
+          ) -> tuple[np.ndarray, BlendReport]:
     """Fill every interior gap with a validated convex blend of the candidate fills.
 
     Parameters
@@ -1336,10 +1411,20 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         class weights' proportions 1.20 mm (TrNN, which had 0.73 there, is the one that
         failed without noise).
 
+    validate_ends
+        Whether the gaps touching the clip's ends get stand-ins of their own
+        (:func:`end_stand_ins`, where the clip validates itself and no candidate is
+        ``optional``): their fills then blend the candidates in the weights those earn.
+        False where the end gaps' fills will not be used (the pipeline's ``--ends leave``
+        and ``hold``): the stand-ins hide data the interior gaps' fills use (walkl,
+        repaired so: 1.9819 → 1.9891 mm).
+
     Returns
     -------
     completed, BlendReport
-        Gaps touching the clip ends take the ``default`` candidate's fill.
+        Gaps touching the clip ends take the ``default`` candidate's fill, or with
+        ``validate_ends`` the blend their stand-ins weigh (the default's where there are
+        none).
     """
     names = tuple(candidates)
     groups = row_groups(observed)
@@ -1351,12 +1436,18 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         raise ValueError("a candidate run once has no validator and is not optional")
     hidden = ([] if validation is not None else
               pseudo_gaps(observed, gapset, rng, fraction=validation_fraction))
+    # End gaps get stand-ins of their own where the clip validates itself and every
+    # candidate is run (not in the windows of long clips), drawn from their own generator
+    # so that the interior stand-ins are those drawn without them.
+    ends = (end_gaps(observed, groups) if validate_ends and validation is None and not optional
+            else [])
 
     errors: dict[int, list[Evidence]] = {}
     own: dict[int, list[Evidence]] = {}        # real gap index -> its stand-ins' evidence
+    end_errors: dict[int, list[Evidence]] = {}
     if validation is not None:
         errors, own = validation.by_class, validation.by_gap
-    if hidden:
+    if hidden or ends:
         train = observed.copy()
         # The global candidate leans on the complete frames (its warm start is their
         # subspace): a validation mask that destroys them would misjudge it, so stand-ins
@@ -1375,6 +1466,15 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
             complete[s:t] = False
             complete_count -= lost
             kept.append(((g, s, t), source))
+        for g, s, t in (end_stand_ins(train, groups, ends, np.random.default_rng([seed, 1]))
+                        if ends else []):
+            lost = int(complete[s:t].sum())
+            if complete_floor > 60 and complete_count - lost < complete_floor:
+                continue
+            train[groups[g], s:t] = False
+            complete[s:t] = False
+            complete_count -= lost
+            kept.append(((g, s, t), END_SOURCE))
         hidden = kept
     first = [names.index(name) for name in costly if name in candidates]
     order = first + [i for i in range(len(names)) if i not in first]
@@ -1401,7 +1501,13 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         for index, ((_, a, b), source) in enumerate(hidden):
             lo, hi = bounds[index], bounds[index + 1]
             # Samples row by row, as the (rows × frames) block of the stand-in.
-            block = evidence(stacked[lo:hi].transpose(1, 0, 2).reshape(-1, len(names)))
+            block = stacked[lo:hi].transpose(1, 0, 2).reshape(-1, len(names))
+            if source == END_SOURCE:
+                # (a candidate that leaves an end gap open there gets no weight)
+                block = np.where(np.isfinite(block), block, UNFILLED_ERROR)
+                end_errors.setdefault(length_class(b - a), []).append(evidence(block))
+                continue
+            block = evidence(block)
             errors.setdefault(length_class(b - a), []).append(block)
             own.setdefault(source, []).append(block)
 
@@ -1467,6 +1573,9 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         total = np.sum(gap_weights, axis=0) if gap_weights else np.zeros(len(names))
         base = max(ran, key=lambda i: total[i])
     out = np.where(observed, matrix, fills[base])
+    if end_errors:
+        _blend_end_gaps(out, fills, ends, groups,
+                        blend_weights(end_errors, np.random.default_rng([seed, 2])))
     # The gaps as one (gaps, 3) array and their weights as one (gaps, k) array, not a
     # Python loop over them: random loss gives tens of thousands of gaps (85_12 at
     # mr = 0.6: 44,000).

@@ -457,6 +457,16 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
       ml = 60 cell), smoothed over 1.25 frames and joined to the data; the best single
       fill of the walking set's long gaps (2.00 mm against TrNN's 2.31), offered where
       one EM iteration is cheap enough.
+    - Gaps touching the clip's ends (filled where ``--ends extrapolate`` asks) get stand-ins
+      of their own: other markers hidden at the same end over the same frames
+      (:func:`~.gapwise.end_stand_ins`), whose errors weigh the candidates there as the
+      interior stand-ins do theirs. They took the TrNN candidate's fill alone before, which
+      has nothing to join at the open end (thirty-fifth session, ``scripts/end_gaps.py``:
+      CMU clips with 5 markers hidden over their first or last 10–240 frames 13–91 →
+      3.5–29 mm; random loss at mr = 0.6 2.1–28 → 1.9–16 mm). Where the end fills are not
+      used (the pipeline's ``--ends leave`` and ``hold``: ``validate_ends=False``) nothing
+      is hidden there: the stand-ins cost the interior fills data (walkl 1.9819 → 1.9891
+      mm with them).
     - ``tsmc``: :func:`mocapfill.solvers.tsmc.gap_fill` — Feng et al.'s nuclear norm with
       the temporal term, to ε = 1e−4, its smooth estimate not joined to the gap ends;
       offered on scattered loss only (≥ 2 % of the samples in runs under 5 frames; real
@@ -554,6 +564,7 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
 
     trnn_options.pop("rate", None)
     centre = trnn_options.pop("centre", None)
+    validate_ends = trnn_options.pop("validate_ends", True)
     if observed.all():
         return np.array(matrix, dtype=np.float64), None
     # The per-gap models and PCA see the short gaps filled first (one spline fill for
@@ -609,7 +620,7 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
                               validators={"trnn": lambda a, o: complete_lowrank(a, o, **loose)}
                               if skip_unweighted else None,
                               once=() if skip_unweighted else ("trnn",), centre=centre,
-                              temporal=("spline",),
+                              temporal=("spline",), validate_ends=validate_ends,
                               # (not in the windows of long clips: the bench's 30-minute
                               # clip took 21.4 → 27.2 s with them, and long_clips.py 12001:0
                               # and 22001:0 moved by 0.003 mm at most)
@@ -630,3 +641,4 @@ def _rigid_tried_beside(short_runs_first, matrix: np.ndarray, observed: np.ndarr
 complete.forwards_to = complete_lowrank     # its **trnn_options (see solvers.option_names)
 complete.windowed = complete_window         # lends validation between windows (pipeline)
 complete.takes_centre = True                # the pipeline passes its rows' centres (blend)
+complete.validates_ends = True              # ...and validate_ends=False where ends are left

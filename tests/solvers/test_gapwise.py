@@ -457,7 +457,9 @@ def test_optional_candidates_without_weight_are_not_run_on_the_real_mask(in_this
                   "linear": _counting(linear_fill, calls, "linear"),
                   "wild": _counting(lambda a, o: truth + 50.0, calls, "wild")}
 
-    filled, report = blend(matrix, observed, candidates, default="wild")
+    # (the end gap unvalidated: the default's fill; validated, that of the candidate its
+    # stand-ins weigh, test_end_gaps_take_the_candidates_their_own_stand_ins_weigh)
+    filled, report = blend(matrix, observed, candidates, default="wild", validate_ends=False)
     assert sorted(name for name, _ in calls) == ["exact", "exact", "linear", "linear",
                                                  "wild", "wild"]
     np.testing.assert_allclose(filled[15:18, :25], truth[15:18, :25] + 50.0)
@@ -692,6 +694,36 @@ def test_each_gap_takes_the_blend_of_its_own_weights_and_end_gaps_the_default(
                       validation=validation)
     assert (filled[~ends] == 2.0).all()
     np.testing.assert_array_equal(filled[ends], truth[ends])
+
+
+def test_end_gaps_take_the_candidates_their_own_stand_ins_weigh(in_this_process):
+    # The default candidate is off by 1 on every missing sample, the other exact: the
+    # interior gaps' stand-ins give the exact one all the weight there, and the end gaps'
+    # own stand-ins (other markers hidden at the same end over the same frames) give it
+    # theirs; told the end fills will not be used, the blend hides none there and the end
+    # gaps keep the default's fill, as they all did before.
+    from mocapfill.solvers.gapwise import blend, end_gaps, end_stand_ins, row_groups
+
+    t = np.arange(600) / 60.0
+    truth = np.vstack([np.sin(1.1 * (j + 1) * t + j) for j in range(30)])
+    candidates = {"off": lambda a, o: np.where(o, a, truth + 1.0),
+                  "exact": lambda a, o: truth.copy()}
+    gaps = [(0, 100, 101), (1, 200, 212), (2, 300, 305), (3, 0, 20), (4, 585, 600)]
+    observed = _mask(10, 600, gaps)
+    ends = end_gaps(observed, row_groups(observed))
+    assert ends == [(3, 0, 20), (4, 585, 600)]
+    placed = end_stand_ins(observed, row_groups(observed), ends, np.random.default_rng(0))
+    assert {(a, b) for _, a, b in placed} == {(0, 20), (585, 600)} and len(placed) == 4
+    assert not any(g in (3, 4) for g, _, _ in placed)
+    matrix = np.where(observed, truth, 0.0)
+    for validate, at_ends in ((True, truth), (False, truth + 1.0)):
+        filled, _ = blend(matrix, observed, candidates, default="off",
+                          validate_ends=validate)
+        for marker, a, b in gaps:
+            rows = slice(3 * marker, 3 * marker + 3)
+            expected = at_ends if a == 0 or b == 600 else truth
+            np.testing.assert_allclose(filled[rows, a:b], expected[rows, a:b], atol=1e-12)
+        np.testing.assert_array_equal(filled[observed], truth[observed])
 
 
 def _turning_body(seed: int, n: int, amplitude: float, hz: float, speed: float, *,
