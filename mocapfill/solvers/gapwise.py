@@ -1458,23 +1458,23 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         complete_count = int(complete.sum())
         complete_floor = max(complete_count // 2, 60)
         kept = []
-        for (g, s, t), source in hidden:
+
+        def take(span: tuple[int, int, int], source: int) -> None:
+            nonlocal complete_count
+            g, s, t = span
             lost = int(complete[s:t].sum())
             if complete_floor > 60 and complete_count - lost < complete_floor:
-                continue
+                return
             train[groups[g], s:t] = False
             complete[s:t] = False
             complete_count -= lost
-            kept.append(((g, s, t), source))
-        for g, s, t in (end_stand_ins(train, groups, ends, np.random.default_rng([seed, 1]))
-                        if ends else []):
-            lost = int(complete[s:t].sum())
-            if complete_floor > 60 and complete_count - lost < complete_floor:
-                continue
-            train[groups[g], s:t] = False
-            complete[s:t] = False
-            complete_count -= lost
-            kept.append(((g, s, t), END_SOURCE))
+            kept.append((span, source))
+
+        for span, source in hidden:
+            take(span, source)
+        for span in (end_stand_ins(train, groups, ends, np.random.default_rng([seed, 1]))
+                     if ends else []):
+            take(span, END_SOURCE)
         hidden = kept
     first = [names.index(name) for name in costly if name in candidates]
     order = first + [i for i in range(len(names)) if i not in first]
