@@ -12,6 +12,7 @@ from collections.abc import Callable
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
+from functools import cache
 from numbers import Real
 
 import numpy as np
@@ -885,21 +886,6 @@ def _fill_channel_ends(column: np.ndarray, observed: np.ndarray, start: int, sto
                 out=column[start:stop])
 
 
-class _MovingChannels(dict):
-    """joint -> the channel columns that move it (``skeleton.moving_channels``), each
-    found once, when first asked for."""
-
-    def __init__(self, skeleton) -> None:
-        super().__init__()
-        self.skeleton = skeleton
-
-    def __missing__(self, joint: int) -> np.ndarray:
-        from .skeleton import moving_channels
-
-        self[joint] = found = moving_channels(self.skeleton, joint)
-        return found
-
-
 def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
     """Fill a skeleton clip (BVH, AMC) in channel space: the joint angles themselves.
 
@@ -919,7 +905,7 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
     moving the point are put back over that gap, as for a jump.
     """
     from . import formats
-    from .skeleton import Skeleton
+    from .skeleton import Skeleton, moving_channels
 
     started = time.perf_counter()
     rejected: set[tuple[int, int]] = set()
@@ -952,8 +938,8 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
             if _gap_status(gap, motion, options) == FILLED:
                 fill[start:stop, column] = True
     before = find_gaps(motion)
-    # moves[j]: the channels that move joint j, found for the joints with gaps only
-    moves = _MovingChannels(skeleton)
+    # moves(j): the channels that move joint j, found once for each joint with a gap
+    moves = cache(lambda joint: moving_channels(skeleton, joint))
     refused = np.zeros_like(fill)       # fills the format kept out (with_channels)
     windowless = np.zeros_like(fill)    # runs no window of a long clip could fill
     if fill.any():
@@ -986,7 +972,7 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
                                                         options)) if jumps]
         if jumping:
             for gap in jumping:
-                fill[gap.start:gap.stop, moves[gap.marker]] = False
+                fill[gap.start:gap.stop, moves(gap.marker)] = False
             repaired = module.with_channels(motion, np.where(fill, solved, values),
                                             observed | fill)
             rejected = {(g.marker, g.start) for g in done
@@ -1002,7 +988,7 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
                           if repaired.observed[g.start:g.stop, g.marker].any()
                           and not repaired.observed[g.start:g.stop, g.marker].all()]:
             for gap in partial:
-                fill[gap.start:gap.stop, moves[gap.marker]] = False
+                fill[gap.start:gap.stop, moves(gap.marker)] = False
             repaired = module.with_channels(motion, np.where(fill, solved, values),
                                             observed | fill)
     else:
@@ -1013,9 +999,9 @@ def repair_channels(motion: Motion, options: RepairOptions) -> RepairResult:
         status = FILLED if done else _gap_status(gap, motion, options)
         if status == FILLED and not done:
             status = (REJECTED_JUMP if (gap.marker, gap.start) in rejected
-                      else LEFT_CUT if refused[gap.start:gap.stop, moves[gap.marker]].any()
+                      else LEFT_CUT if refused[gap.start:gap.stop, moves(gap.marker)].any()
                       else LEFT_NO_WINDOW
-                      if windowless[gap.start:gap.stop, moves[gap.marker]].any()
+                      if windowless[gap.start:gap.stop, moves(gap.marker)].any()
                       else LEFT_CHANNELS)
         outcomes.append(GapOutcome(gap, status, options.method))
     return RepairResult(repaired, outcomes, time.perf_counter() - started)
