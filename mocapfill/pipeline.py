@@ -76,7 +76,8 @@ class RepairOptions:
     ends
         Gaps touching the first or last frame: "leave" them missing (default), "hold" the
         nearest observed value, or "extrapolate" with the method's fill clamped to the
-        marker's observed range widened by ``END_MARGIN`` of that range on each side.
+        marker's observed range widened by ``END_MARGIN`` of that range on each side (and
+        to what the source file can store: an integer C3D's int16 range).
     markers, exclude
         Names or shell globs (one pattern may be given as a string), matched with or
         without a label's ``Subject:`` prefix: only
@@ -637,8 +638,16 @@ def _complete_clip(motion: Motion, matrix: np.ndarray, observed: np.ndarray,
         raise SolverError(f"{named(motion.path)}{exc}") from None
 
 
-def _fill_ends(values: np.ndarray, observed: np.ndarray, gap: Gap, ends: str) -> None:
-    """Rewrite an end gap of one marker (frames × 3, in place) for the end policy."""
+def _fill_ends(values: np.ndarray, observed: np.ndarray, gap: Gap, ends: str,
+               storable: tuple[float, float] | None = None) -> None:
+    """Rewrite an end gap of one marker (frames × 3, in place) for the end policy.
+
+    ``storable``: the coordinates the source file can hold (an integer C3D's int16 words
+    at its scale), or None. An extrapolated fill is kept within it as well: a marker seen
+    near that limit would otherwise be extrapolated past what the file can store, and the
+    patch writer would refuse the whole clip (btk-sample04__sub_labels.c3d, an end fill
+    of 2646 beside a limit of 2637.6).
+    """
     seen = values[observed]
     if ends == "hold":
         anchor = values[gap.stop] if gap.at_start else values[gap.start - 1]
@@ -646,8 +655,10 @@ def _fill_ends(values: np.ndarray, observed: np.ndarray, gap: Gap, ends: str) ->
     else:  # extrapolate: keep the method's fill, never beyond the observed range + margin
         low, high = seen.min(axis=0), seen.max(axis=0)
         margin = END_MARGIN * (high - low)
-        np.clip(values[gap.start:gap.stop], low - margin, high + margin,
-                out=values[gap.start:gap.stop])
+        low, high = low - margin, high + margin
+        if storable is not None:
+            low, high = np.maximum(low, storable[0]), np.minimum(high, storable[1])
+        np.clip(values[gap.start:gap.stop], low, high, out=values[gap.start:gap.stop])
 
 
 def _jump_thresholds(values: np.ndarray, observed: np.ndarray, markers: list[int],
@@ -834,11 +845,12 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     accepted = np.zeros(motion.observed.shape, dtype=bool)
     new_observed = motion.observed.copy()
     to_check = [index for index, o in enumerate(outcomes) if o.status == FILLED]
+    storable = getattr(motion.source, "value_range", None)
     for index in to_check:
         gap = outcomes[index].gap
         if gap.at_start or gap.at_end:
             _fill_ends(filled[:, gap.marker, :], motion.observed[:, gap.marker], gap,
-                       options.ends)
+                       options.ends, storable)
     # A long clip's windows leave NaN where none of them observes the marker (missing
     # through a whole window and the overlaps around it): such a gap is left, whole.
     unfilled = ~finite_samples(filled) & ~motion.observed

@@ -138,6 +138,24 @@ def test_extrapolated_end_stays_within_observed_range_plus_margin():
     assert (filled.positions[150:, 3] >= seen.min(axis=0) - 0.1 * span - 1e-9).all()
 
 
+def test_extrapolated_end_stays_within_what_the_source_file_can_store():
+    # Seen from 3000 to 3270 mm: the range + 10 % reaches 3297, past the 3276.7 an int16
+    # word holds at scale 0.1; the fill (3400) is clamped to the file's limit instead.
+    from mocapfill.gaps import Gap
+    from mocapfill.pipeline import _fill_ends
+
+    values = np.repeat(np.linspace(3000, 3270, 10)[:, None], 3, axis=1)
+    values = np.vstack([values, np.full((5, 3), 3400.0)])
+    observed = np.arange(15) < 10
+    gap = Gap(marker=0, label="M", start=10, stop=15, n_frames_clip=15)
+    free = values.copy()
+    _fill_ends(free, observed, gap, "extrapolate")
+    np.testing.assert_allclose(free[10:], 3297.0)
+    _fill_ends(values, observed, gap, "extrapolate", (-3276.8, 3276.7))
+    np.testing.assert_array_equal(values[10:], 3276.7)
+    np.testing.assert_array_equal(values[:10], free[:10])
+
+
 def test_max_gap_leaves_longer_gaps_missing():
     _, gapped = gapped_clip()
     result = repair(gapped, RepairOptions(max_gap_frames=30))

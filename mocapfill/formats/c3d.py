@@ -142,6 +142,14 @@ class C3DSource:
     def word_size(self) -> int:
         return 4 if self.is_float else 2
 
+    @property
+    def value_range(self) -> tuple[float, float] | None:
+        """The coordinates an int16 word can hold at this scale (None for float storage):
+        extrapolated end fills are kept within it (``pipeline._fill_ends``)."""
+        if self.is_float:
+            return None
+        return INT16_MIN * self.scale, INT16_MAX * self.scale
+
 
 # --------------------------------------------------------------------------- encoding
 

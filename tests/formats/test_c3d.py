@@ -428,6 +428,27 @@ def test_integer_overflow_is_refused_not_wrapped(tmp_path):
                   tmp_path / "out.c3d")
 
 
+def test_end_extrapolation_of_a_real_integer_c3d_is_written(tmp_path):
+    # A marker seen up to 2632 mm (limit 2637.6 at this scale): its end fill went to 2646
+    # and the writer refused the clip. Now written, observed words byte for byte.
+    path = shared_file("c3d/btk-sample04__sub_labels.c3d")
+    before = c3d.read(path)
+    assert before.source.value_range is not None
+    out = tmp_path / "out.c3d"
+    result = subprocess.run([sys.executable, "-m", "mocapfill", "repair", "--ends",
+                             "extrapolate", str(path), str(out)], capture_output=True,
+                            text=True)
+    assert result.returncode == 0, result.stderr
+    after = c3d.read(out)
+    assert after.observed.sum() > before.observed.sum()
+    low, high = before.source.value_range
+    assert low <= np.nanmin(after.positions) and np.nanmax(after.positions) <= high
+    np.testing.assert_array_equal(after.positions[before.observed],
+                                  before.positions[before.observed])
+    assert_only_samples_changed(before.source, out.read_bytes(),
+                                after.observed & ~before.observed)
+
+
 def test_changed_source_file_is_not_patched(tmp_path):
     path, _, _ = gapped_file(tmp_path)
     before = c3d.read(path)
