@@ -733,16 +733,23 @@ END_FRACTION = 0.025
 def end_stand_ins(train: np.ndarray, groups: np.ndarray, ends: list[tuple[int, int, int]],
                   rng: np.random.Generator, *, repeats: int = END_STAND_INS,
                   fraction: float = END_FRACTION) -> list[tuple[int, int, int]]:
-    """Stand-ins for the end gaps ``ends``: for each, up to ``repeats`` other groups
-    observed (in ``train``, the mask with the interior stand-ins hidden) over the same
-    frames at the same end and on the frame beside them, hidden there, so that each is an
-    end gap of the real one's length; at most ``fraction`` of the observed samples, one
-    stand-in per group at each end.
+    """Stand-ins for the end gaps ``ends``, at most ``fraction`` of the observed samples
+    (in ``train``, the mask with the interior stand-ins hidden), one per group at each end.
+    For each end gap, first its own group over the ``length`` frames beside the gap, where
+    observed over them and the frame after (its end gap, twice as long in the validation
+    run, is scored there only: at the same distances from the first frame seen as the real
+    gap's samples); then up to ``repeats`` other groups observed over the gap's frames and
+    the frame beside them, hidden there, so that each is an end gap of the real one's
+    length.
 
     The default's fill of an end gap was its TrNN candidate's alone, unvalidated and with
     nothing to join at the open end (``scripts/end_gaps.py``: 48–91 mm on 10–60-frame end
     gaps of CMU clips where PCA's fill erred 1.5–13 mm; on random loss 2–25 mm where
     TSMC's erred 1.4–4.8): the stand-ins let validation weigh the candidates there.
+    Other groups alone (thirty-fifth session) brought 13–91 mm down to 3.5–29 mm; the own
+    group's stand-in first, with the outlier rule on end gaps (:func:`_blend_end_gaps`),
+    took the sum over seven cases and two seeds from 118 to 78 mm (docs/results.md,
+    thirty-sixth session).
     """
     n = train.shape[1]
     seen = train[groups[:, 0]]
@@ -757,8 +764,17 @@ def end_stand_ins(train: np.ndarray, groups: np.ndarray, ends: list[tuple[int, i
         if length + 1 >= n:
             continue
         frames = slice(0, length + 1) if at_start else slice(n - length - 1, n)
-        fitting = np.flatnonzero(seen[:, frames].all(axis=1))
         side = taken[0 if at_start else n]
+        beside = slice(length, 2 * length + 1) if at_start else slice(n - 2 * length - 1,
+                                                                      n - length)
+        if 2 * length + 1 < n and g not in side and seen[g, beside].all():
+            if used + length > budget:
+                return chosen
+            side.add(g)
+            used += length
+            chosen.append((g, length, 2 * length) if at_start
+                          else (g, n - 2 * length, n - length))
+        fitting = np.flatnonzero(seen[:, frames].all(axis=1))
         fitting = [h for h in fitting.tolist() if h != g and h not in side]
         for h in rng.permutation(fitting)[:repeats].tolist() if fitting else []:
             if used + length > budget:
@@ -780,16 +796,44 @@ def _blend_end_gaps(out: np.ndarray, fills: list[np.ndarray | None],
                     weights: dict[int, np.ndarray]) -> None:
     """Fill each end gap of ``out`` (in place) with the candidates' fills in the weights of
     its length class (the nearest with evidence), over the candidates run whose fill there
-    is finite."""
+    is finite and, on gaps of MIN_MODEL_GAP frames or more, is not an outlier.
+
+    The outlier rule is the interior gaps' (:func:`_without_outliers`), over the distinct
+    fills: at an open end several candidates give one fill (the splines, the rigid and
+    the regression fills all take the same fill there), and with them counted apart the
+    typical distance from the median fill was 0, which turned the rule off. A TrNN fill
+    0.65 (unit RMS) off where the others erred 0.001–0.06 kept a fifth of the weight so
+    (10_01, 10 frames, seed 5: 14 mm). On shorter end gaps, where fills agree closely, the
+    rule dropped good ones (02_05, random loss, seed 3: 2.3 → 5.7 mm).
+    """
     for g, a, b in ends:
         w = _weights_for(length_class(b - a), weights, None).copy()
         rows = groups[g][:, None]
-        segments = {k: fills[k][rows, a:b] for k in np.flatnonzero(w > 0).tolist()
-                    if fills[k] is not None}
-        w[[k for k in range(w.size) if k not in segments
-           or not np.isfinite(segments[k]).all()]] = 0.0
+        segments = {k: fills[k][rows, a:b] for k in range(w.size) if fills[k] is not None
+                    and np.isfinite(fills[k][rows, a:b]).all()}
+        w[[k for k in range(w.size) if k not in segments]] = 0.0
+        if b - a >= MIN_MODEL_GAP and w.sum() > 0:
+            w = _end_gap_inliers(w, segments, b - a)
         if w.sum() > 0:
             out[rows, a:b] = sum(w[k] / w.sum() * segments[k] for k in np.flatnonzero(w > 0))
+
+
+def _end_gap_inliers(w: np.ndarray, segments: dict[int, np.ndarray], length: int
+                     ) -> np.ndarray:
+    """``w`` without the candidates whose fill of an end gap (``segments``: candidate →
+    its fill there) is an outlier among the distinct fills (see :func:`_blend_end_gaps`)."""
+    ran = list(segments)
+    stack = np.stack([segments[k].reshape(-1) for k in ran])
+    _, first, which = np.unique(stack, axis=0, return_index=True, return_inverse=True)
+    if first.size < 3:
+        return w
+    which = which.ravel()
+    distinct_w = np.bincount(which, w[ran], minlength=first.size)
+    kept = _without_outliers(distinct_w[None], stack[first][None, :, None, :],
+                             factor=outlier_factor(length))[0]
+    out = w.copy()
+    out[[k for j, k in enumerate(ran) if kept[which[j]] == 0]] = 0.0
+    return out
 
 
 # A stand-in's evidence is kept as (EᵀE, number of samples) for its error matrix E
@@ -1390,7 +1434,11 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         the stand-ins' samples hidden as well (at most ``validation_fraction``); for a
         global model such as TrNN that is a small share of its evidence, and its second
         run was the costliest of the blend's (see :func:`mocapfill.solvers.trnn.complete`).
-        Not with ``validators`` or ``optional`` for the same name.
+        An end gap's own-marker stand-in (:func:`end_stand_ins`) lengthens the end gap in
+        that run, so the fill of the real end gap comes from twice its length: running
+        TrNN on the real mask as well did not help (the end-gap cases of
+        docs/results.md, thirty-sixth session: 77.9 → 76.8 mm on seeds 1–2, 105.5 → 110.5
+        on seeds 6–8). Not with ``validators`` or ``optional`` for the same name.
     centre
         (rows,) where each row's zero lies in the clip's units over the scale (the
         pipeline's row-wise centring, :class:`mocapfill.scaling.UnitScale`): the

@@ -458,12 +458,15 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, seed: int = 0,
       fill of the walking set's long gaps (2.00 mm against TrNN's 2.31), offered where
       one EM iteration is cheap enough.
     - Gaps touching the clip's ends (filled where ``--ends extrapolate`` asks) get stand-ins
-      of their own: other markers hidden at the same end over the same frames
-      (:func:`~.gapwise.end_stand_ins`), whose errors weigh the candidates there as the
-      interior stand-ins do theirs. They took the TrNN candidate's fill alone before, which
-      has nothing to join at the open end (thirty-fifth session, ``scripts/end_gaps.py``:
-      CMU clips with 5 markers hidden over their first or last 10–240 frames 13–91 →
-      3.5–29 mm; random loss at mr = 0.6 2.1–28 → 1.9–16 mm). Where the end fills are not
+      of their own: the gap's marker over the frames beside it, and other markers hidden at
+      the same end over the same frames (:func:`~.gapwise.end_stand_ins`), whose errors
+      weigh the candidates there as the interior stand-ins do theirs; an outlier fill is
+      dropped (:func:`~.gapwise._blend_end_gaps`). They took the TrNN candidate's fill alone
+      before, which has nothing to join at the open end (``scripts/end_gaps.py``: CMU clips
+      with 5 markers hidden over their first or last 10–240 frames 13–91 mm, other markers'
+      stand-ins 3.5–29 mm (thirty-fifth session), with the marker's own and the outlier
+      rule 1.9–16 mm (thirty-sixth); random loss at mr = 0.6 2.1–28 → 1.9–16 → 1.9–9.1
+      mm). Where the end fills are not
       used (the pipeline's ``--ends leave`` and ``hold``: ``validate_ends=False``) nothing
       is hidden there: the stand-ins cost the interior fills data (walkl 1.9819 → 1.9891
       mm with them).
