@@ -532,8 +532,12 @@ def _not_newer_than_input(output: Path, source: Path) -> bool:
 
 def _temp_patterns(output: Path, token: str) -> list[str]:
     """Globs of the temporary files ``formats.write`` and ``_write_in_place`` leave beside
-    ``output`` while writing it with the token ``token``."""
+    ``output`` while writing it with the token ``token``; beside an AMC, also the skeleton
+    copied for it (``acclaim.companions``), whose name the writer chooses."""
     from .formats import _RANDOM_CHARS, temp_prefix
+
+    skeleton = ([f".*.[aA][sS][fF].{glob.escape(token)}.*.tmp"]
+                if output.suffix.lower() == ".amc" else [])
 
     in_place = f".inplace{output.suffix}"
     outer = temp_prefix(output.name, in_place, token)
@@ -542,7 +546,7 @@ def _temp_patterns(output: Path, token: str) -> list[str]:
     inner = temp_prefix(f"{outer}{chr(0) * _RANDOM_CHARS}{in_place}", ".tmp", token)
     return [f"{glob.escape(temp_prefix(output.name, '.tmp', token))}*.tmp",
             f"{glob.escape(outer)}*{glob.escape(in_place)}",
-            f"{glob.escape(inner).replace(chr(0), '?')}*.tmp"]
+            f"{glob.escape(inner).replace(chr(0), '?')}*.tmp", *skeleton]
 
 
 def remove_temp_files(jobs: Iterable[FileJob]) -> None:

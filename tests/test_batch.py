@@ -1009,6 +1009,29 @@ def test_a_stopped_batch_leaves_the_temporaries_of_another_writer_of_its_outputs
     assert formats.read(out / "clip.npz").n_frames == 200
 
 
+def test_a_batch_removes_the_skeleton_temporary_a_killed_worker_left_beside_an_amc(tmp_path):
+    # The .asf copied beside a repaired AMC is written to a temporary file first; a worker
+    # killed then left it, since only the output's own temporaries were looked for.
+    output = tmp_path / "10_01.amc"
+    job = batch.FileJob(tmp_path / "in" / "10_01.amc", output, temp_token="b4tch")
+    made = {}
+    for token in ("b4tch", "12345"):
+        reset = formats.TEMP_TOKEN.set(token)
+        try:
+            made[token] = formats.create_temp(tmp_path, "10.asf", ".tmp")
+        finally:
+            formats.TEMP_TOKEN.reset(reset)
+    (tmp_path / "10.asf").write_text("kept")
+    batch.remove_temp_files([job])
+    assert not os.path.exists(made["b4tch"]) and os.path.exists(made["12345"])
+    assert (tmp_path / "10.asf").read_text() == "kept"
+    # Not beside another format's output.
+    made["b4tch"] = formats.create_temp(tmp_path, "10.asf", ".tmp")
+    batch.remove_temp_files([batch.FileJob(tmp_path / "a.npz", tmp_path / "b.npz",
+                                           temp_token=str(os.getpid()))])
+    assert os.path.exists(made["b4tch"])
+
+
 @pytest.mark.parametrize("in_place", [False, True])
 def test_a_batch_removes_the_temporaries_named_with_its_token_only(tmp_path, in_place):
     output = tmp_path / "clip.npz"
