@@ -733,6 +733,20 @@ def test_end_gaps_take_the_candidates_their_own_stand_ins_weigh(in_this_process)
         np.testing.assert_array_equal(filled[observed], truth[observed])
 
 
+def test_an_end_gap_under_min_model_gap_frames_gets_no_own_marker_stand_in():
+    # The random loss of the paper's protocol: short end gaps validated on their own
+    # marker beside them lost accuracy (docs/results.md, thirty-sixth session).
+    from mocapfill.solvers.gapwise import MIN_MODEL_GAP, end_gaps, end_stand_ins, row_groups
+
+    short, long = MIN_MODEL_GAP - 1, MIN_MODEL_GAP
+    observed = _mask(10, 600, [(0, 0, short), (1, 600 - long, 600)])
+    ends = end_gaps(observed, row_groups(observed))
+    placed = end_stand_ins(observed, row_groups(observed), ends, np.random.default_rng(0))
+    assert (1, 600 - 2 * long, 600 - long) in placed
+    assert not any(g == 0 for g, _, _ in placed)
+    assert len(placed) == 5
+
+
 def test_a_wild_end_gap_fill_loses_its_weight_beside_identical_fills():
     # At an open end the splines, the rigid and the regression fills give one fill: counted
     # apart, their distance from the median fill (0) was the typical distance and no fill
@@ -748,9 +762,10 @@ def test_a_wild_end_gap_fill_loses_its_weight_beside_identical_fills():
     kept = _end_gap_inliers(w, segments, 12)
     np.testing.assert_array_equal(kept, [0.0, 0.1, 0.1, 0.1, 0.2, 0.2])
     assert 12 >= MIN_MODEL_GAP
-    # Fewer than three distinct fills: nothing to judge.
-    np.testing.assert_array_equal(_end_gap_inliers(w[:4], {k: segments[k] for k in range(4)},
-                                                   12), w[:4])
+    # Fewer than four distinct fills: nothing is judged (of three, two agreeing on a wrong
+    # fill would make the right one the outlier).
+    np.testing.assert_array_equal(_end_gap_inliers(w[:5], {k: segments[k] for k in range(5)},
+                                                   12), w[:5])
 
 
 def _turning_body(seed: int, n: int, amplitude: float, hz: float, speed: float, *,
