@@ -9,6 +9,13 @@ last L frames. Needs ../shared/data/cmu. Example (docs/results.md, thirty-fifth 
 
     python scripts/end_gaps.py 10_01 end 10
     python scripts/end_gaps.py 02_05 mr 0.6
+
+``sums SEEDS [CASES]`` prints only the default's end-gap error (and its interior one) for
+each case and seed, and their sum over cases and seeds; CASES (comma-separated, e.g.
+``"10_01 end 30,85_02 mr 0.4"``) defaults to the seven of the thirty-fifth session's
+table (docs/results.md, thirty-sixth session):
+
+    python scripts/end_gaps.py sums 6,7,8
 """
 from __future__ import annotations
 
@@ -46,6 +53,36 @@ def gapped(truth, kind: str, value: float, seed: int):
     return truth.with_positions(positions, observed)
 
 
+CASES = "10_01 end 10,85_02 end 60,02_05 end 60,85_12 end 240,10_01 mr 0.6,02_05 mr 0.6,85_02 mr 0.6"
+
+
+def end_and_interior(observed: np.ndarray, seen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Masks of the end-gap and the interior-gap samples that the truth holds."""
+    groups = gapwise.row_groups(observed)
+    inside = np.zeros_like(observed)
+    for g, a, b in gapwise.interior_gaps(observed, groups):
+        inside[groups[g], a:b] = True
+    return ~observed & ~inside & seen, inside & seen
+
+
+def sums(seeds: list[int], cases: str = CASES) -> None:
+    total = 0.0
+    for case in cases.split(","):
+        clip, kind, value = case.split()
+        truth = _cmu_motion(clip)
+        T, seen = truth.matrix()
+        line = []
+        for seed in seeds:
+            M, observed = gapped(truth, kind, float(value), seed).matrix()
+            ends, inside = end_and_interior(observed, seen)
+            errors = (complete_matrix(M, observed, "trnn") - T) ** 2
+            total += np.sqrt(errors[ends].mean())
+            within = f"{np.sqrt(errors[inside].mean()):.3f}" if inside.any() else "–"
+            line.append(f"{np.sqrt(errors[ends].mean()):.2f} / {within}")
+        print(f"{case}: " + " | ".join(line), flush=True)
+    print(f"sum of the end-gap errors {total:.2f} mm")
+
+
 def main(clip: str, kind: str, value: float) -> None:
     truth = _cmu_motion(clip)
     T, seen = truth.matrix()
@@ -54,12 +91,7 @@ def main(clip: str, kind: str, value: float) -> None:
         scale = UnitScale.fit(M, observed)
         X = scale.forward(np.where(observed, M, 0.0))
         centre = scale.centre[:, 0] / scale.scale
-        groups = gapwise.row_groups(observed)
-        inside = np.zeros_like(observed)
-        for g, a, b in gapwise.interior_gaps(observed, groups):
-            inside[groups[g], a:b] = True
-        ends = ~observed & ~inside & seen
-        inside &= seen
+        ends, inside = end_and_interior(observed, seen)
         short_runs_first = gapwise.ShortRunsFirst()
         candidates = {"trnn": complete_lowrank, "gaussian": gaussian_fill, "tsmc": tsmc,
                       "pca": short_runs_first(partial(pca_fill, centre=centre))}
@@ -75,4 +107,7 @@ def main(clip: str, kind: str, value: float) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2], float(sys.argv[3]))
+    if sys.argv[1] == "sums":
+        sums([int(seed) for seed in sys.argv[2].split(",")], *sys.argv[3:4])
+    else:
+        main(sys.argv[1], sys.argv[2], float(sys.argv[3]))

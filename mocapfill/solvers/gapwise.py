@@ -1444,7 +1444,8 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         that run, so the fill of the real end gap comes from twice its length: running
         TrNN on the real mask as well did not help (the end-gap cases of
         docs/results.md, thirty-sixth session, with an own-marker stand-in on every end
-        gap: 77.9 → 76.8 mm on seeds 1–2, 105.5 → 110.5 on seeds 6–8). Not with ``validators`` or ``optional`` for the same name.
+        gap: 77.9 → 76.8 mm on seeds 1–2, 105.5 → 110.5 on seeds 6–8). Not with
+        ``validators`` or ``optional`` for the same name.
     centre
         (rows,) where each row's zero lies in the clip's units over the scale (the
         pipeline's row-wise centring, :class:`mocapfill.scaling.UnitScale`): the
