@@ -98,6 +98,26 @@ def _right_singular(gram: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.sqrt(values), vectors[:, order].T
 
 
+# Models of up to this many columns take their axes from the Gram matrix whatever their
+# training frames: 3 × 41, the most a model has on the accuracy tables' clips (CMU: 41
+# markers, the walking set: 37), where a Gram matrix's eigendecomposition costs about a
+# millisecond and the fills stay bit for bit. Wider models with more than twice as many
+# columns as training frames take them from the training matrix's thin SVD
+# (:func:`_axes_wide`), which is then the cheaper (1,003 columns on one thread: the
+# eigendecomposition 0.08–0.13 s whatever the frames; the SVD 0.005 s on 100 frames,
+# 0.07 on 500, 0.27 on 1,000).
+GRAM_COLUMNS = 123
+
+
+def _right_singular_wide(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_right_singular` of AᵀA for a wide A (rows < columns), from A's thin SVD:
+    min(rows, columns) values, the rest being 0, with the same cut (singular values under
+    1e−6 of the largest read as 0)."""
+    _, s, Vt = np.linalg.svd(A, full_matrices=False)
+    s[s < 1e-6 * max(s[0], 0.0)] = 0.0
+    return s, Vt
+
+
 class _Moments:
     """The sums behind every model's Gram matrix over the clip's complete frames, once.
 
@@ -143,6 +163,30 @@ def _model(X: np.ndarray, i: int, predictors: list[int], train: np.ndarray,
     """
     cols = np.concatenate([np.arange(3 * j, 3 * j + 3) for j in predictors + [i]])
     w = np.repeat(weights, 3)
+    wide = len(cols) > max(2 * len(train), GRAM_COLUMNS)
+    if wide:
+        mean_N, std, (s, Vt), (s0, V0t) = _axes_wide(X, cols, train, w)
+    else:
+        mean_N, std, (s, Vt), (s0, V0t) = _axes_gram(X, cols, train, w, moments)
+    mean_N0 = mean_N.copy()
+    mean_N0[-3:] = 0.0
+    k = max(_n_components(s, min_cum_sv), _n_components(s0, min_cum_sv))
+    k = min(k, Vt.shape[0], V0t.shape[0])
+    V = Vt[:k].T
+    V0 = V0t[:k].T
+    B = V.T @ V0
+    if transform == "inverse":
+        B = np.linalg.pinv(B)
+    # Only the gapped marker's columns are wanted (a far predictor's weight may be 0); a
+    # wide model forms only those (its whole map would be columns² × PCs).
+    transfer = V0 @ B @ V[-3:].T if wide else (V0 @ B @ V.T)[:, -3:]
+    return cols, mean_N0, std, w, transfer, mean_N[-3:]
+
+
+def _axes_gram(X: np.ndarray, cols: np.ndarray, train: np.ndarray, w: np.ndarray,
+               moments: _Moments | None) -> tuple:
+    """The mean and standard deviation of N = X[train, cols], and the singular values and
+    right singular vectors of N and N₀ normalised, from their Gram matrices."""
     known = None if moments is None else moments.centred(X, train, cols)
     if known is not None:
         centred, mean_N = known
@@ -159,8 +203,6 @@ def _model(X: np.ndarray, i: int, predictors: list[int], train: np.ndarray,
         mean_N = origin + offset
     std = np.sqrt(np.maximum(np.diag(centred), 0.0) / len(train))
     std[std == 0] = 1.0
-    mean_N0 = mean_N.copy()
-    mean_N0[-3:] = 0.0
     scale = w / std
     # N₀ is N with i's columns zeroed: after the same normalisation its Gram matrix is
     # N's with those rows and columns zeroed, so one product serves both PCAs.
@@ -168,17 +210,35 @@ def _model(X: np.ndarray, i: int, predictors: list[int], train: np.ndarray,
     gram0 = gram.copy()
     gram0[-3:, :] = 0.0
     gram0[:, -3:] = 0.0
-    s, Vt = _right_singular(gram)
-    s0, V0t = _right_singular(gram0)
-    k = max(_n_components(s, min_cum_sv), _n_components(s0, min_cum_sv))
-    k = min(k, Vt.shape[0], V0t.shape[0])
-    V = Vt[:k].T
-    V0 = V0t[:k].T
-    B = V.T @ V0
-    if transform == "inverse":
-        B = np.linalg.pinv(B)
-    # Only the gapped marker's columns are wanted (a far predictor's weight may be 0).
-    return cols, mean_N0, std, w, (V0 @ B @ V.T)[:, -3:], mean_N[-3:]
+    return mean_N, std, _right_singular(gram), _right_singular(gram0)
+
+
+def _axes_wide(X: np.ndarray, cols: np.ndarray, train: np.ndarray, w: np.ndarray
+               ) -> tuple:
+    """:func:`_axes_gram` for a model with more than twice as many columns as training
+    frames, and more than :data:`GRAM_COLUMNS`: many markers over few frames.
+
+    The Gram matrices there are columns × columns of rank below the frames: 1,000
+    markers over 30 frames made two 3,003 × 3,003 eigendecompositions per model, 1 s
+    each. The normalised N itself (frames × columns) has the same singular values and
+    right singular vectors, from a thin SVD costing frames² × columns, and N₀ is N with
+    the marker's columns zeroed. The axes' signs are LAPACK's choice either way, which
+    the published transform Vᵀ V₀ cancels only nearly (where V₀ ≈ V, as the marker's
+    small weight makes them): the fills move by rounding-sized amounts (1,000 markers
+    over 30 and over 100 frames: by 4e−5 and 4e−4 mm at most, the errors the same to
+    1e−6 mm).
+    """
+    N = X[np.ix_(train, cols)]
+    origin = N[0].copy()                            # (as in _axes_gram)
+    N -= origin
+    offset = N.sum(axis=0) / len(train)
+    N -= offset
+    std = np.sqrt((N * N).sum(axis=0) / len(train))
+    std[std == 0] = 1.0
+    N *= w / std / np.sqrt(max(len(train) - 1, 1))
+    axes = _right_singular_wide(N)
+    N[:, -3:] = 0.0
+    return origin + offset, std, axes, _right_singular_wide(N)
 
 
 def _predict(X: np.ndarray, model: tuple, frames: np.ndarray) -> np.ndarray:

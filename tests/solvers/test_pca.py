@@ -277,3 +277,63 @@ def test_models_from_the_complete_frames_sums_equal_models_from_their_own_frames
     assert summed[2][4] == direct[2][4] == 1.0      # std: none, so 1
     for a, b in zip(direct, summed):
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+
+
+def _eigh_sizes(monkeypatch) -> list[int]:
+    """The sizes of the matrices np.linalg.eigh is given from now on."""
+    sizes: list[int] = []
+    eigh = np.linalg.eigh
+
+    def recording(a, *args, **kwargs):
+        sizes.append(np.shape(a)[-1])
+        return eigh(a, *args, **kwargs)
+
+    monkeypatch.setattr(np.linalg, "eigh", recording)
+    return sizes
+
+
+def test_a_model_wider_than_its_frames_never_decomposes_a_columns_by_columns_matrix(
+        monkeypatch):
+    # Many markers over few frames (1,000 × 30 took two 3,003 × 3,003 eigendecompositions
+    # per model): a model with more than twice as many columns as training frames, and
+    # more than GRAM_COLUMNS, takes its axes from the training matrix. The fill is still
+    # exact.
+    M = coupled_markers(5, markers=60, n=30, r=4)
+    observed = np.ones(M.shape, dtype=bool)
+    observed[-3:, 10:20] = False                # 20 training frames, 180 columns
+    sizes = _eigh_sizes(monkeypatch)
+    out = pca.complete(masked(M, observed), observed, transform="inverse")
+    assert max(sizes, default=0) <= 30
+    assert rel(out, M, ~observed) < 1e-6
+    np.testing.assert_array_equal(out[observed], M[observed])
+
+
+@pytest.mark.parametrize("transform", ["published", "inverse"])
+def test_a_wide_model_is_the_model_of_its_gram_matrix(monkeypatch, transform):
+    # The thin SVD of the normalised training frames gives the Gram matrix's axes: the
+    # same map and normalisation as the Gram path, to rounding.
+    rng = np.random.default_rng(6)
+    X = rng.standard_normal((25, 4)) @ rng.standard_normal((4, 150))
+    X += 0.01 * rng.standard_normal(X.shape)
+    X[:, 7] = 3.0                               # a constant column: no spread, std 1
+    weights = np.append(np.exp(-rng.uniform(0, 3, 49)), 0.02)
+    train = np.arange(2, 25)
+    wide = pca._model(X, 49, list(range(49)), train, weights, 0.99, transform)
+    monkeypatch.setattr(pca, "GRAM_COLUMNS", 10**6)
+    sizes = _eigh_sizes(monkeypatch)
+    gram = pca._model(X, 49, list(range(49)), train, weights, 0.99, transform)
+    assert sizes == [150, 150]                  # (the wide one took none)
+    for a, b in zip(gram, wide):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-10)
+
+
+def test_models_up_to_gram_columns_keep_the_gram_matrix_whatever_their_frames(
+        monkeypatch):
+    # A 41-marker clip (CMU's, the accuracy tables') keeps its fills bit for bit: its
+    # widest model, 123 columns, is decomposed from its Gram matrix even on 20 frames.
+    M = coupled_markers(7, markers=41, n=30, r=4)
+    observed = np.ones(M.shape, dtype=bool)
+    observed[-3:, 10:20] = False
+    sizes = _eigh_sizes(monkeypatch)
+    pca.complete(masked(M, observed), observed)
+    assert 3 * 41 == pca.GRAM_COLUMNS and max(sizes) == pca.GRAM_COLUMNS
