@@ -42,9 +42,12 @@ from ._linalg import spd_inverse
 # The Gaussian candidate is offered when one EM iteration stays within both budgets
 # (multiply-adds). The missing sets: random occlusions of many markers give nearly every
 # frame its own large set (85_12 at mr = 0.6 with runs under 5 frames held: 4264 sets,
-# 1.1e8, 0.2 s per iteration), and there the splines win anyway. The covariance and the
-# precision products (2·m²·n): 3e7 on an 810-frame clip of 41 markers, 1.4e8 on 4500
-# frames; 300 markers over a 12000-frame window would be 1.6e10.
+# 1.1e8, 0.2 s per iteration), and there the splines win anyway. The dense part: the
+# covariance and the precision products (2·m²·n), 3e7 on an 810-frame clip of 41 markers,
+# 1.4e8 on 4500 frames, 300 markers over a 12000-frame window 1.6e10; and the precision,
+# the covariance's inverse (m³), 1.9e6 for 41 markers but 2.7e10 for 1,000 markers, whose
+# clips of 30 frames passed the products' budget (5.4e8) and spent most of their repair
+# inverting 3,000 × 3,000 matrices.
 MAX_SET_COST = 2e7
 MAX_DENSE_COST = 1e9
 
@@ -304,14 +307,15 @@ def _smooth(rows: np.ndarray, sigma: float) -> np.ndarray:
 
 
 def iteration_cost(observed: np.ndarray, *, min_gap: int = 5) -> tuple[float, float]:
-    """Multiply-adds of one EM iteration of :func:`gap_fill`: (missing sets, dense part)."""
+    """Multiply-adds of one EM iteration of :func:`gap_fill`: (missing sets, dense part:
+    the m × m products and the precision's inverse)."""
     from .gapwise import held_short_runs, row_groups
 
     held = held_short_runs(observed, row_groups(observed), min_gap)
     m, n = observed.shape
     sets = sum(p.counts.size * p.rows.shape[1] ** 3 + p.frames.size * p.rows.shape[1] * m
                for p in _missing_sets(~held))
-    return float(sets), 2.0 * m * m * n
+    return float(sets), 2.0 * m * m * n + float(m) ** 3
 
 
 def affordable(observed: np.ndarray, *, min_gap: int = 5) -> bool:

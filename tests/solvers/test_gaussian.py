@@ -205,3 +205,9 @@ def test_random_occlusion_and_wide_clips_are_over_budget_and_marker_gaps_are_not
     wide = np.ones((900, 12000), dtype=bool)
     wide[:3, 100:200] = False
     assert not gaussian.affordable(wide)
+    # 1,000 markers over 30 frames: the products are within budget (5.4e8), but each
+    # iteration inverts a 3,000 × 3,000 covariance (2.7e10).
+    few = np.ones((3000, 30), dtype=bool)
+    few[:3, 10:20] = False
+    assert 2.0 * 3000 * 3000 * 30 <= gaussian.MAX_DENSE_COST
+    assert not gaussian.affordable(few)
