@@ -851,6 +851,13 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
         if gap.at_start or gap.at_end:
             _fill_ends(filled[:, gap.marker, :], motion.observed[:, gap.marker], gap,
                        options.ends, storable)
+    if storable is not None:
+        # Interior fills too: a marker seen near the limit on both sides of a gap gave a
+        # fill past it (3283 mm beside a limit of 3276.7), and the patch writer refused
+        # the whole clip as it did end fills. (NaN stays NaN; observed samples are put
+        # back from the input below.)
+        np.clip(filled, storable[0], storable[1], out=filled,
+                where=~motion.observed[:, :, None])
     # A long clip's windows leave NaN where none of them observes the marker (missing
     # through a whole window and the overlaps around it): such a gap is left, whole.
     unfilled = ~finite_samples(filled) & ~motion.observed

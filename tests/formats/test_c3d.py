@@ -449,6 +449,31 @@ def test_end_extrapolation_of_a_real_integer_c3d_is_written(tmp_path):
                                 after.observed & ~before.observed)
 
 
+def test_an_interior_fill_past_the_int16_limit_does_not_refuse_the_clip(tmp_path):
+    # A marker that peaks near the limit (3270 mm at scale 0.1, limit 3276.7) on both
+    # sides of a gap: the spline-like fill overshoots to about 3295 mm and the writer
+    # refused the whole clip (exit 123), as it did end fills before they were clamped.
+    n = 120
+    positions = walk(n_frames=n)
+    frames = np.arange(n)
+    positions[:, 0, 0] = np.where(frames <= 40, 3270 - (40 - frames), 3270 - (frames - 80))
+    residuals = np.full(positions.shape[:2], 2.0)
+    residuals[41:80, 0] = -1
+    positions[residuals < 0] = 0.0
+    path = write_c3d(tmp_path / "peak.c3d", positions, residuals, scale=0.1)
+    before = c3d.read(path)
+    out = tmp_path / "out.c3d"
+    result = subprocess.run([sys.executable, "-m", "mocapfill", "repair", str(path),
+                             str(out), "--max-jump", "0"], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    after = c3d.read(out)
+    assert after.observed[41:80, 0].all()
+    low, high = before.source.value_range
+    assert low <= np.nanmin(after.positions) and np.nanmax(after.positions) <= high
+    assert_only_samples_changed(before.source, out.read_bytes(),
+                                after.observed & ~before.observed)
+
+
 def test_changed_source_file_is_not_patched(tmp_path):
     path, _, _ = gapped_file(tmp_path)
     before = c3d.read(path)
