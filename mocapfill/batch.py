@@ -536,8 +536,15 @@ def _temp_patterns(output: Path, token: str) -> list[str]:
     copied for it (``acclaim.companions``), whose name the writer chooses."""
     from .formats import _RANDOM_CHARS, temp_prefix
 
-    skeleton = ([f".*.[aA][sS][fF].{glob.escape(token)}.*.tmp"]
-                if output.suffix.lower() == ".amc" else [])
+    skeleton = []
+    if output.suffix.lower() == ".amc":
+        from .formats.acclaim import _asf_names
+
+        # Any name, and those it takes beside this output cut short as temp_prefix cuts
+        # a long one (".asf" itself may be cut: an output of 236 bytes).
+        skeleton = [f".*.[aA][sS][fF].{glob.escape(token)}.*.tmp",
+                    *(f"{glob.escape(temp_prefix(name, '.tmp', token))}*.tmp"
+                      for name in _asf_names(output))]
 
     in_place = f".inplace{output.suffix}"
     outer = temp_prefix(output.name, in_place, token)

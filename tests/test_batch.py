@@ -1032,6 +1032,24 @@ def test_a_batch_removes_the_skeleton_temporary_a_killed_worker_left_beside_an_a
     assert os.path.exists(made["b4tch"])
 
 
+def test_a_batch_removes_the_skeleton_temporary_of_a_long_named_amc(tmp_path):
+    # The skeleton's temporary is named as any other (formats.temp_prefix), its name cut
+    # short where it would pass NAME_MAX bytes: cut inside ".asf" the glob on ".asf."
+    # missed it (an output of 236 bytes with the batch's 8-character token).
+    token = "b4tch123"
+    for length in range(224, 240):
+        stem = "s" * length
+        output = tmp_path / f"{stem}.amc"
+        job = batch.FileJob(tmp_path / "in" / output.name, output, temp_token=token)
+        reset = formats.TEMP_TOKEN.set(token)
+        try:
+            made = formats.create_temp(tmp_path, f"{stem}.asf", ".tmp")
+        finally:
+            formats.TEMP_TOKEN.reset(reset)
+        batch.remove_temp_files([job])
+        assert not os.path.exists(made), length
+
+
 @pytest.mark.parametrize("in_place", [False, True])
 def test_a_batch_removes_the_temporaries_named_with_its_token_only(tmp_path, in_place):
     output = tmp_path / "clip.npz"
