@@ -754,37 +754,48 @@ def end_stand_ins(train: np.ndarray, groups: np.ndarray, ends: list[tuple[int, i
     6–8 from 142 to 110 mm (docs/results.md, thirty-sixth session).
     """
     n = train.shape[1]
-    seen = train[groups[:, 0]]
+    seen = train[groups[:, 0]]                  # (a copy: what is left seen as we go)
     budget = fraction * seen.sum()
+    # The frame beside each stand-in stays seen: a marker with end gaps at both ends (or
+    # one taken at both ends) was hidden twice over the same frames, or over all it shows.
+    kept_seen = np.zeros_like(seen)
     used = 0
     taken = {0: set(), n: set()}
     chosen = []
+
+    def place(h: int, s: int, t: int, at: int) -> None:
+        seen[h, s:t] = False
+        kept_seen[h, at] = True
+        chosen.append((h, s, t))
+
     for index in rng.permutation(len(ends)).tolist():
         g, a, b = ends[index]
         length = b - a
         at_start = a == 0
         if length + 1 >= n:
             continue
-        frames = slice(0, length + 1) if at_start else slice(n - length - 1, n)
         side = taken[0 if at_start else n]
-        beside = slice(length, 2 * length + 1) if at_start else slice(n - 2 * length - 1,
-                                                                      n - length)
+        own = (length, 2 * length, 2 * length) if at_start else (n - 2 * length,
+                                                                  n - length,
+                                                                  n - 2 * length - 1)
         if (length >= MIN_MODEL_GAP and 2 * length + 1 < n and g not in side
-                and seen[g, beside].all()):
+                and seen[g, own[0]:own[1]].all() and seen[g, own[2]]
+                and not kept_seen[g, own[0]:own[1]].any()):
             if used + length > budget:
                 return chosen
             side.add(g)
             used += length
-            chosen.append((g, length, 2 * length) if at_start
-                          else (g, n - 2 * length, n - length))
-        fitting = np.flatnonzero(seen[:, frames].all(axis=1))
+            place(g, *own)
+        span = (0, length, length) if at_start else (n - length, n, n - length - 1)
+        fitting = np.flatnonzero(seen[:, span[0]:span[1]].all(axis=1) & seen[:, span[2]]
+                                 & ~kept_seen[:, span[0]:span[1]].any(axis=1))
         fitting = [h for h in fitting.tolist() if h != g and h not in side]
         for h in rng.permutation(fitting)[:repeats].tolist() if fitting else []:
             if used + length > budget:
                 return chosen
             side.add(h)
             used += length
-            chosen.append((h, 0, length) if at_start else (h, n - length, n))
+            place(h, *span)
     return chosen
 
 

@@ -747,6 +747,30 @@ def test_an_end_gap_under_min_model_gap_frames_gets_no_own_marker_stand_in():
     assert len(placed) == 5
 
 
+def test_end_stand_ins_hide_no_sample_twice_and_keep_the_frame_beside_each():
+    # A marker seen only between its two end gaps: its own-marker stand-ins at both ends
+    # hid the same frames twice (n = 16) or all it shows (n = 20), its end gaps then
+    # joined in the validation run. Other markers taken at both ends of a clip whose end
+    # gaps nearly meet did the same.
+    from mocapfill.solvers.gapwise import end_gaps, end_stand_ins, row_groups
+
+    cases = [_mask(200, n, [(0, 0, 5), (0, n - 5, n)]) for n in (16, 20, 30)]
+    cases.append(_mask(200, 40, [(0, 0, 25), (1, 15, 40)]))
+    for observed in cases:
+        groups = row_groups(observed)
+        n = observed.shape[1]
+        for seed in range(5):
+            placed = end_stand_ins(observed, groups, end_gaps(observed, groups),
+                                   np.random.default_rng(seed))
+            hidden = np.zeros((len(groups), n), int)
+            for g, a, b in placed:
+                hidden[g, a:b] += 1
+            assert hidden.max() <= 1
+            for g, a, b in placed:
+                beside = b if a == 0 or (b < n and not observed[3 * g, a - 1]) else a - 1
+                assert observed[3 * g, beside] and not hidden[g, beside], (g, a, b)
+
+
 def test_a_wild_end_gap_fill_loses_its_weight_beside_identical_fills():
     # At an open end the splines, the rigid and the regression fills give one fill: counted
     # apart, their distance from the median fill (0) was the typical distance and no fill
