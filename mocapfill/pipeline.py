@@ -338,11 +338,17 @@ def windows_at_once(rows: int, window_frames: int) -> int:
 
 def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
                   solver_options: dict, borrowed: list | None = None, *,
-                  fill_ends: bool = True):
+                  fill_ends: bool = True, clip_ends: tuple[bool, bool] = (True, True)):
     """The method's fill of ``matrix`` in the unit scale, back in the clip's units.
 
     With ``borrowed`` (a list, possibly empty) the method's ``windowed`` form is called
-    with those validations and (fill, validation) is returned.
+    with those validations and (fill, validation) is returned. ``clip_ends``: which ends
+    of ``matrix`` are the clip's (a window of a long clip holds one or neither). Where
+    the end fills are used (``fill_ends``) and the method validates them
+    (``validates_ends``), only the gaps touching those get stand-ins, and a window that
+    holds one is solved as a whole clip is (every candidate run, not the windows'
+    lighter form, whose candidates run only where weighted): its end gaps are then
+    validated, not given one candidate's fill.
     """
     scale = UnitScale.fit(matrix, observed)
     scaled = scale.forward(np.where(observed, matrix, 0.0))
@@ -353,13 +359,18 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
         # marker by its own mean position). The default's rigid candidate and
         # rigid-partner check, and the PCA method's distance weights, add it back.
         solver_options = {**solver_options, "centre": scale.centre[:, 0] / scale.scale}
-    if not fill_ends and getattr(fn, "validates_ends", False):
-        solver_options = {**solver_options, "validate_ends": False}
+    light = True
+    if getattr(fn, "validates_ends", False):
+        sides = clip_ends if fill_ends else (False, False)
+        if sides != (True, True):
+            solver_options = {**solver_options,
+                              "validate_ends": any(sides) and (sides[0], sides[1])}
+        light = not any(sides)
     validation = None
     try:
         if borrowed is not None:
             solved, validation = fn.windowed(scaled, observed, borrowed=borrowed,
-                                             skip_unweighted=True, **solver_options)
+                                             skip_unweighted=light, **solver_options)
         else:
             solved = fn(scaled, observed, **solver_options)
     except (np.linalg.LinAlgError, FloatingPointError) as exc:
@@ -457,7 +468,7 @@ def reporting_windows(progress: Callable[[int, int], None]):
 
 
 def _window_fills(matrix: np.ndarray, observed: np.ndarray, bounds: list[tuple[int, int]],
-                  method: str, solver_options: dict):
+                  method: str, solver_options: dict, fill_ends: bool = True):
     """Each window's fill, window after window.
 
     For a method with a ``windowed`` form the windows 0, VALIDATE_EVERY, 2·VALIDATE_EVERY,
@@ -472,7 +483,8 @@ def _window_fills(matrix: np.ndarray, observed: np.ndarray, bounds: list[tuple[i
     def solve(k: int, borrowed: list | None = None):
         start, stop = bounds[k]
         return _solve_scaled(matrix[:, start:stop], observed[:, start:stop], method,
-                             solver_options, borrowed)
+                             solver_options, borrowed, fill_ends=fill_ends,
+                             clip_ends=(start == 0, stop == matrix.shape[1]))
 
     lends = getattr(get_method(method), "windowed", None) is not None and len(bounds) >= 3
     needs: dict[int, tuple[int, ...]] = {}
@@ -591,7 +603,7 @@ def complete_matrix(matrix: np.ndarray, observed: np.ndarray, method: str = "trn
     progress = _WINDOW_PROGRESS.get()
     if progress is not None:
         progress(0, len(bounds))
-    fills = _window_fills(matrix, observed, bounds, method, solver_options)
+    fills = _window_fills(matrix, observed, bounds, method, solver_options, fill_ends)
     for index, ((start, stop), fill) in enumerate(zip(bounds, fills)):
         w = np.ones(stop - start)
         if start > 0:

@@ -156,6 +156,42 @@ def test_extrapolated_end_stays_within_what_the_source_file_can_store():
     np.testing.assert_array_equal(values[:10], free[:10])
 
 
+@pytest.mark.parametrize("fill_ends", [True, False])
+def test_a_long_clip_validates_its_end_gaps_in_its_first_and_last_windows(monkeypatch,
+                                                                          fill_ends):
+    # The windows of long clips run their candidates only where weighted, and gave the
+    # clip's end gaps one candidate's fill, unvalidated; the windows holding the clip's
+    # ends are now solved as a whole clip is, with stand-ins at those ends only (not at
+    # the window's inner edge). Without --ends extrapolate none are hidden.
+    from mocapfill import pipeline
+    from mocapfill.solvers import gapwise
+
+    monkeypatch.setenv("MOCAPFILL_THREADS", "1")        # the windows in this process
+    calls = []
+    real = gapwise.end_stand_ins
+
+    def spy(train, groups, ends, rng, **options):
+        calls.append((train.shape[1], ends))
+        return real(train, groups, ends, rng, **options)
+
+    monkeypatch.setattr(gapwise, "end_stand_ins", spy)
+    truth = smooth_clip(1500, 8)
+    gapped = with_gap(with_gap(with_gap(truth, 1, 0, 30), 2, 1470, 1500), 4, 700, 740)
+    matrix, observed = gapped.matrix()
+    n = matrix.shape[1]
+    filled = pipeline.complete_matrix(matrix, observed, window_frames=400, window_overlap=100,
+                                      fill_ends=fill_ends)
+    assert np.isfinite(filled).all()
+    if not fill_ends:
+        assert calls == []
+        return
+    assert len(pipeline.window_bounds(n, 400, 100)) >= 3
+    starts = [ends for width, ends in calls if any(a == 0 for _, a, _ in ends)]
+    last = [ends for width, ends in calls if any(b == width for _, _, b in ends)]
+    assert len(calls) == 2 and len(starts) == 1 and len(last) == 1
+    assert all(a == 0 for _, a, _ in starts[0]) and all(b == 400 for _, _, b in last[0])
+
+
 def test_max_gap_leaves_longer_gaps_missing():
     _, gapped = gapped_clip()
     result = repair(gapped, RepairOptions(max_gap_frames=30))

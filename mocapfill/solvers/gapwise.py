@@ -1401,7 +1401,8 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
           optional: tuple[str, ...] = (), validators: dict[str, Candidate] | None = None,
           once: tuple[str, ...] = (), centre: np.ndarray | None = None,
           local_checks: dict[str, Callable[[np.ndarray], np.ndarray]] | None = None,
-          temporal: tuple[str, ...] = (), validate_ends: bool = True
+          temporal: tuple[str, ...] = (),
+          validate_ends: bool | tuple[bool, bool] = True
           ) -> tuple[np.ndarray, BlendReport]:
     """Fill every interior gap with a validated convex blend of the candidate fills.
 
@@ -1483,7 +1484,9 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
         ``optional``): their fills then blend the candidates in the weights those earn.
         False where the end gaps' fills will not be used (the pipeline's ``--ends leave``
         and ``hold``): the stand-ins hide data the interior gaps' fills use (walkl,
-        repaired so: 1.9819 → 1.9891 mm).
+        repaired so: 1.9819 → 1.9891 mm). A pair (start, end) says which of the matrix's
+        two ends are the clip's (a window of a long clip holds one or neither): only
+        the gaps touching those get stand-ins.
 
     Returns
     -------
@@ -1505,8 +1508,9 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     # End gaps get stand-ins of their own where the clip validates itself and every
     # candidate is run (not in the windows of long clips), drawn from their own generator
     # so that the interior stand-ins are those drawn without them.
-    ends = (end_gaps(observed, groups) if validate_ends and validation is None and not optional
-            else [])
+    sides = (validate_ends, validate_ends) if isinstance(validate_ends, bool) else validate_ends
+    ends = ([(g, a, b) for g, a, b in end_gaps(observed, groups) if sides[0 if a == 0 else 1]]
+            if any(sides) and validation is None and not optional else [])
 
     errors: dict[int, list[Evidence]] = {}
     own: dict[int, list[Evidence]] = {}        # real gap index -> its stand-ins' evidence
