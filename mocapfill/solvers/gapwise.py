@@ -1506,7 +1506,9 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     hidden = ([] if validation is not None else
               pseudo_gaps(observed, gapset, rng, fraction=validation_fraction))
     # End gaps get stand-ins of their own where the clip validates itself and every
-    # candidate is run (not in the windows of long clips), drawn from their own generator
+    # candidate is run (not in the light windows of long clips; the pipeline solves the
+    # windows holding the clip's ends in full where their fills are used, and says which
+    # ends are the clip's: ``validate_ends``), drawn from their own generator
     # so that the interior stand-ins are those drawn without them.
     sides = (validate_ends, validate_ends) if isinstance(validate_ends, bool) else validate_ends
     ends = ([(g, a, b) for g, a, b in end_gaps(observed, groups) if sides[0 if a == 0 else 1]]
