@@ -650,16 +650,9 @@ def _complete_clip(motion: Motion, matrix: np.ndarray, observed: np.ndarray,
         raise SolverError(f"{named(motion.path)}{exc}") from None
 
 
-def _fill_ends(values: np.ndarray, observed: np.ndarray, gap: Gap, ends: str,
-               storable: tuple[float, float] | None = None) -> None:
-    """Rewrite an end gap of one marker (frames × 3, in place) for the end policy.
-
-    ``storable``: the coordinates the source file can hold (an integer C3D's int16 words
-    at its scale), or None. An extrapolated fill is kept within it as well: a marker seen
-    near that limit would otherwise be extrapolated past what the file can store, and the
-    patch writer would refuse the whole clip (btk-sample04__sub_labels.c3d, an end fill
-    of 2646 beside a limit of 2637.6).
-    """
+def _fill_ends(values: np.ndarray, observed: np.ndarray, gap: Gap, ends: str) -> None:
+    """Rewrite an end gap of one marker (frames × 3, in place) for the end policy (what
+    the source file can store is kept to after, for every fill: :func:`repair`)."""
     seen = values[observed]
     if ends == "hold":
         anchor = values[gap.stop] if gap.at_start else values[gap.start - 1]
@@ -667,10 +660,8 @@ def _fill_ends(values: np.ndarray, observed: np.ndarray, gap: Gap, ends: str,
     else:  # extrapolate: keep the method's fill, never beyond the observed range + margin
         low, high = seen.min(axis=0), seen.max(axis=0)
         margin = END_MARGIN * (high - low)
-        low, high = low - margin, high + margin
-        if storable is not None:
-            low, high = np.maximum(low, storable[0]), np.minimum(high, storable[1])
-        np.clip(values[gap.start:gap.stop], low, high, out=values[gap.start:gap.stop])
+        np.clip(values[gap.start:gap.stop], low - margin, high + margin,
+                out=values[gap.start:gap.stop])
 
 
 def _jump_thresholds(values: np.ndarray, observed: np.ndarray, markers: list[int],
@@ -857,17 +848,19 @@ def repair(motion: Motion, options: RepairOptions | None = None) -> RepairResult
     accepted = np.zeros(motion.observed.shape, dtype=bool)
     new_observed = motion.observed.copy()
     to_check = [index for index, o in enumerate(outcomes) if o.status == FILLED]
-    storable = getattr(motion.source, "value_range", None)
     for index in to_check:
         gap = outcomes[index].gap
         if gap.at_start or gap.at_end:
             _fill_ends(filled[:, gap.marker, :], motion.observed[:, gap.marker], gap,
-                       options.ends, storable)
+                       options.ends)
+    storable = getattr(motion.source, "value_range", None)
     if storable is not None:
-        # Interior fills too: a marker seen near the limit on both sides of a gap gave a
-        # fill past it (3283 mm beside a limit of 3276.7), and the patch writer refused
-        # the whole clip as it did end fills. (NaN stays NaN; observed samples are put
-        # back from the input below.)
+        # Every fill within what the source file can store (an integer C3D's int16 words
+        # at its scale), as a measured sample is: a marker seen near the limit gave fills
+        # past it, and the patch writer refused the whole clip (an end fill of 2646 beside
+        # a limit of 2637.6 in btk-sample04__sub_labels.c3d with --ends extrapolate; 3283
+        # mm beside 3276.7 inside a gap). (NaN stays NaN; observed samples are put back
+        # from the input below.)
         np.clip(filled, storable[0], storable[1], out=filled,
                 where=~motion.observed[:, :, None])
     # A long clip's windows leave NaN where none of them observes the marker (missing

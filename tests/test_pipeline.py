@@ -138,22 +138,27 @@ def test_extrapolated_end_stays_within_observed_range_plus_margin():
     assert (filled.positions[150:, 3] >= seen.min(axis=0) - 0.1 * span - 1e-9).all()
 
 
-def test_extrapolated_end_stays_within_what_the_source_file_can_store():
+def test_extrapolated_end_stays_within_what_the_source_file_can_store(monkeypatch):
     # Seen from 3000 to 3270 mm: the range + 10 % reaches 3297, past the 3276.7 an int16
-    # word holds at scale 0.1; the fill (3400) is clamped to the file's limit instead.
-    from mocapfill.gaps import Gap
-    from mocapfill.pipeline import _fill_ends
+    # word holds at scale 0.1; the fill (far above) is clamped to the file's limit instead.
+    from types import SimpleNamespace
 
-    values = np.repeat(np.linspace(3000, 3270, 10)[:, None], 3, axis=1)
-    values = np.vstack([values, np.full((5, 3), 3400.0)])
-    observed = np.arange(15) < 10
-    gap = Gap(marker=0, label="M", start=10, stop=15, n_frames_clip=15)
-    free = values.copy()
-    _fill_ends(free, observed, gap, "extrapolate")
-    np.testing.assert_allclose(free[10:], 3297.0)
-    _fill_ends(values, observed, gap, "extrapolate", (-3276.8, 3276.7))
-    np.testing.assert_array_equal(values[10:], 3276.7)
-    np.testing.assert_array_equal(values[:10], free[:10])
+    from mocapfill import solvers
+
+    monkeypatch.setitem(solvers.METHODS, "teleport", "tests.test_pipeline:teleport")
+    truth = smooth_clip(200, 8)
+    positions = truth.positions.copy()
+    positions[:150, 3, :] = np.linspace(3000, 3270, 150)[:, None]
+    gapped = with_gap(truth.with_positions(positions, truth.observed), 3, 150, 200)
+    options = RepairOptions(method="teleport", ends="extrapolate", max_jump_mm=0)
+    free = repair(gapped, options).motion
+    np.testing.assert_allclose(free.positions[150:, 3], 3297.0)
+    limited = repair(gapped.replace(source=SimpleNamespace(value_range=(-3276.8, 3276.7))),
+                     options).motion
+    np.testing.assert_array_equal(limited.positions[150:, 3], 3276.7)
+    seen = gapped.observed
+    np.testing.assert_array_equal(limited.positions[seen], gapped.positions[seen])
+    np.testing.assert_array_equal(free.positions[seen], gapped.positions[seen])
 
 
 @pytest.mark.parametrize("fill_ends", [True, False])

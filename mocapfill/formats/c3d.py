@@ -145,7 +145,7 @@ class C3DSource:
     @property
     def value_range(self) -> tuple[float, float] | None:
         """The coordinates an int16 word can hold at this scale (None for float storage):
-        extrapolated end fills are kept within it (``pipeline._fill_ends``)."""
+        a repair keeps its fills within it (``pipeline.repair``)."""
         if self.is_float:
             return None
         return INT16_MIN * self.scale, INT16_MAX * self.scale
