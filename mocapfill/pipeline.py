@@ -362,9 +362,9 @@ def _solve_scaled(matrix: np.ndarray, observed: np.ndarray, method: str,
     light = True
     if getattr(fn, "validates_ends", False):
         sides = clip_ends if fill_ends else (False, False)
-        if sides != (True, True):
+        if sides != (True, True):       # (the method's default: both ends validated)
             solver_options = {**solver_options,
-                              "validate_ends": any(sides) and (sides[0], sides[1])}
+                              "validate_ends": sides if any(sides) else False}
         light = not any(sides)
     validation = None
     try:

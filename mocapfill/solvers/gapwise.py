@@ -823,8 +823,9 @@ def _blend_end_gaps(out: np.ndarray, fills: list[np.ndarray | None],
     for g, a, b in ends:
         w = _weights_for(length_class(b - a), weights, None).copy()
         rows = groups[g][:, None]
-        segments = {k: fills[k][rows, a:b] for k in range(w.size) if fills[k] is not None
-                    and np.isfinite(fills[k][rows, a:b]).all()}
+        segments = {k: fills[k][rows, a:b] for k in range(w.size) if fills[k] is not None}
+        segments = {k: segment for k, segment in segments.items()
+                    if np.isfinite(segment).all()}
         w[[k for k in range(w.size) if k not in segments]] = 0.0
         if b - a >= MIN_MODEL_GAP and w.sum() > 0:
             w = _end_gap_inliers(w, segments, b - a)
