@@ -191,14 +191,10 @@ def _axes_gram(X: np.ndarray, cols: np.ndarray, train: np.ndarray, w: np.ndarray
     if known is not None:
         centred, mean_N = known
     else:
-        N = X[np.ix_(train, cols)]
         # The normalised matrix (N − mean)/std·w is never formed: its Gram matrix is the
         # centred cross-product of N scaled on both sides, from one product and one sum
-        # (on a 12,000-frame window the passes over N were most of a model's cost). N is
-        # shifted by its first row first, so a constant column gives exactly 0.
-        origin = N[0].copy()
-        N -= origin
-        offset = N.sum(axis=0) / len(train)
+        # (on a 12,000-frame window the passes over N were most of a model's cost).
+        N, origin, offset = _shifted(X, train, cols)
         centred = N.T @ N - len(train) * np.outer(offset, offset)
         mean_N = origin + offset
     std = np.sqrt(np.maximum(np.diag(centred), 0.0) / len(train))
@@ -211,6 +207,16 @@ def _axes_gram(X: np.ndarray, cols: np.ndarray, train: np.ndarray, w: np.ndarray
     gram0[-3:, :] = 0.0
     gram0[:, -3:] = 0.0
     return mean_N, std, _right_singular(gram), _right_singular(gram0)
+
+
+def _shifted(X: np.ndarray, train: np.ndarray, cols: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """N = X[train, cols] less its first row (so that a constant column gives exactly 0),
+    that row, and the mean of the shifted N."""
+    N = X[np.ix_(train, cols)]
+    origin = N[0].copy()
+    N -= origin
+    return N, origin, N.sum(axis=0) / len(train)
 
 
 def _axes_wide(X: np.ndarray, cols: np.ndarray, train: np.ndarray, w: np.ndarray
@@ -228,10 +234,7 @@ def _axes_wide(X: np.ndarray, cols: np.ndarray, train: np.ndarray, w: np.ndarray
     over 30 and over 100 frames: by 4e−5 and 4e−4 mm at most, the errors the same to
     1e−6 mm).
     """
-    N = X[np.ix_(train, cols)]
-    origin = N[0].copy()                            # (as in _axes_gram)
-    N -= origin
-    offset = N.sum(axis=0) / len(train)
+    N, origin, offset = _shifted(X, train, cols)
     N -= offset
     std = np.sqrt((N * N).sum(axis=0) / len(train))
     std[std == 0] = 1.0
