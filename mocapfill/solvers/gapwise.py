@@ -319,8 +319,14 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
     distance to j varies least (at least three of them) are taken as one rigid body; the
     rigid motion (Kabsch) from their positions at frame a−1 to those at every gap frame
     carries j's position at a−1 into the gap, likewise from frame b, and the two are
-    blended linearly so the fill meets both ends exactly. Gaps shorter than ``min_gap``
-    and gaps without three donors get a linear fill. None when the rows are not markers.
+    blended linearly so the fill meets both ends exactly. A gap at the clip's start or end
+    (filled where ``--ends extrapolate`` asks) is carried from its one seen side alone,
+    with donors seen there and all through it: it held the last sample before, as the
+    splines do, and a fast limb ran off it (``scripts/end_gaps.py sums``, the thirty-
+    seventh session: 5 markers hidden over a clip's first or last 10–240 frames, and random
+    loss, summed end-gap errors 77.7 → 61.3 mm on seeds 1–2, 110.2 → 87.5 held out). Gaps
+    shorter than ``min_gap`` and gaps without three donors get a linear fill (held at an
+    end). None when the rows are not markers.
     With ``only`` (a set of (marker, start, stop)), other gaps keep the linear fill
     (:data:`FILLS_GAPS_ALONE`).
 
@@ -342,6 +348,7 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
         return None
     out = linear_fill(matrix, observed)
     spans = np.array([(j, a, b) for j, a, b in interior_gaps(observed, groups)
+                      + end_gaps(observed, groups)
                       if b - a >= min_gap and (only is None or (j, a, b) in only)],
                      dtype=np.int64).reshape(-1, 3)
     if not spans.size:
@@ -365,10 +372,13 @@ def _rigid_donors(matrix: np.ndarray, observed: np.ndarray, spans: np.ndarray, d
     j, a, b = spans.T
     spread_all = distance_spread(P, observed[0::3].T, rows=np.unique(j).tolist())
     before = _seen_before(observed)
-    usable = (before[:, b + 1] - before[:, a - 1] == b - a + 2).T   # seen on [a − 1, b]
+    # Seen on [a − 1, b], the gap and the frames beside it (only the one seen at an end).
+    lo, hi = np.maximum(a - 1, 0), np.minimum(b + 1, P.shape[0])
+    usable = (before[:, hi] - before[:, lo] == hi - lo).T
     spread = np.where(usable, spread_all[j], np.inf)                 # (gaps, markers)
+    reference = np.where(a > 0, a - 1, b)
     chosen = _distinct_donors_of_gaps(                               # (gaps, donors)
-        spread, donors, lambda g, columns: P[a[g, None] - 1, columns])
+        spread, donors, lambda g, columns: P[reference[g, None], columns])
     return P, shift, before, chosen, np.take_along_axis(spread, np.maximum(chosen, 0), axis=1)
 
 
@@ -405,6 +415,8 @@ def _rigid_batch(P: np.ndarray, spans: np.ndarray, chosen: np.ndarray,
     j, a, b = spans.T
     gap, frames = gap_frames(a, b)
     s = ((frames - a[gap] + 1) / (b - a + 1)[gap])[:, None]
+    # An end gap is carried from its one seen side alone.
+    s = np.where((a == 0)[gap, None], 1.0, np.where((b == len(P))[gap, None], 0.0, s))
     if spread is None:
         weights = np.full(chosen.shape, 1.0 / chosen.shape[1])
     else:                       # (a donor at exactly constant distance: a small floor)
@@ -416,8 +428,12 @@ def _rigid_batch(P: np.ndarray, spans: np.ndarray, chosen: np.ndarray,
     moved = P[frames[:, None], donors]                               # (frames, d, 3)
     fill = np.zeros((gap.size, 3))
     for ref, weight in ((a - 1, 1 - s), (b, s)):
-        R, t = _kabsch(P[ref[gap][:, None], donors], moved, w)
-        fill += weight * (np.einsum("lab,lb->la", R, P[ref[gap], j[gap]]) + t)
+        side = weight[:, 0] > 0
+        if not side.any():
+            continue
+        R, t = _kabsch(P[ref[gap[side]][:, None], donors[side]], moved[side], w[side])
+        fill[side] += weight[side] * (np.einsum("lab,lb->la", R,
+                                                P[ref[gap[side]], j[gap[side]]]) + t)
     return gap, frames, fill
 
 
@@ -813,8 +829,9 @@ def _blend_end_gaps(out: np.ndarray, fills: list[np.ndarray | None],
     is finite and, on gaps of MIN_MODEL_GAP frames or more, is not an outlier.
 
     The outlier rule is the interior gaps' (:func:`_without_outliers`), over the distinct
-    fills: at an open end several candidates give one fill (the splines, the rigid and
-    the regression fills all take the same fill there), and with them counted apart the
+    fills: at an open end several candidates give one fill (the splines and the
+    regression fill hold the last sample there, as the rigid fills do on end gaps under
+    MIN_MODEL_GAP frames), and with them counted apart the
     typical distance from the median fill was 0, which turned the rule off. A TrNN fill
     0.65 (unit RMS) off where the others erred 0.001–0.06 kept a fifth of the weight so
     (10_01, 10 frames, seed 5: 14 mm). On shorter end gaps, where fills agree closely, the
@@ -1382,6 +1399,18 @@ def _stand_in_errors_and_fill(fill_fn: Candidate, blinded: np.ndarray, train: np
     return errors, join_ends(fill, matrix, observed, gapset)[~observed]
 
 
+def _gap_holding(train: np.ndarray, groups: np.ndarray, span: tuple[int, int, int]
+                 ) -> tuple[int, int, int]:
+    """The gap of ``train`` that holds the hidden ``span`` (g, s, t): an end gap's own
+    stand-in joins the real end gap beside it."""
+    g, s, t = span
+    seen = train[groups[g][0]]
+    before = np.flatnonzero(seen[:s])
+    after = np.flatnonzero(seen[t:])
+    return (g, int(before[-1]) + 1 if before.size else 0,
+            t + int(after[0]) if after.size else seen.size)
+
+
 def _hidden_samples(hidden: list, groups: np.ndarray, observed: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rows (samples, k) and frames (samples,) of what the stand-ins hid, and the bounds
@@ -1559,7 +1588,10 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     if hidden:
         blinded = np.where(train, matrix, 0.0)
         sample_rows, sample_frames, bounds = _hidden_samples(hidden, groups, observed)
-        spans = frozenset(span for span, _ in hidden)
+        # (an end stand-in may lengthen a real end gap: the rigid and regression fills
+        # are asked for the gap that holds it)
+        spans = frozenset(_gap_holding(train, groups, span) if source == END_SOURCE else span
+                          for span, source in hidden)
         ran_once = {i for i in order if names[i] in once}
         trials = {i: partial(_stand_in_errors_and_fill, candidates[names[i]], blinded, train,
                              matrix, observed, gapset, sample_rows, sample_frames)
