@@ -319,16 +319,21 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
     distance to j varies least (at least three of them) are taken as one rigid body; the
     rigid motion (Kabsch) from their positions at frame a−1 to those at every gap frame
     carries j's position at a−1 into the gap, likewise from frame b, and the two are
-    blended linearly so the fill meets both ends exactly. A gap at the clip's start or end
-    (filled where ``--ends extrapolate`` asks) is carried from its one seen side alone,
-    with donors seen there and all through it: it held the last sample before, as the
-    splines do, and a fast limb ran off it (``scripts/end_gaps.py sums``, the thirty-
-    seventh session: 5 markers hidden over a clip's first or last 10–240 frames, and random
-    loss, summed end-gap errors 77.7 → 61.3 mm on seeds 1–2, 110.2 → 87.5 held out). Gaps
-    shorter than ``min_gap`` and gaps without three donors get a linear fill (held at an
-    end). None when the rows are not markers.
-    With ``only`` (a set of (marker, start, stop)), other gaps keep the linear fill
-    (:data:`FILLS_GAPS_ALONE`).
+    blended linearly so the fill meets both ends exactly. Interior gaps shorter than
+    ``min_gap`` and gaps without three donors get a linear fill (held at an end).
+
+    A gap at the clip's start or end (filled where ``--ends extrapolate`` asks), of any
+    length, is carried from its one seen side alone, with donors seen there and all
+    through it. It held the last sample before, as the splines do, and a moving limb ran
+    off it. Measured (``scripts/end_gaps.py sums``, thirty-seventh session; summed end-gap
+    errors in mm, session start → end gaps of 5 frames or more → every end gap): 5 markers
+    hidden over a clip's first or last 10–240 frames and random loss, seeds 1–2 77.7 →
+    61.3 → 45.6, held-out seeds 6–8 110.2 → 87.5 → 76.6; the paper's random loss alone (12
+    cells, seeds 1–3) 94.5 → 91.7 → 50.0, most of it from 1–4-frame end gaps, where a
+    held sample lags the marker by the frames it missed.
+
+    None when the rows are not markers. With ``only`` (a set of (marker, start, stop)),
+    other gaps keep the linear fill (:data:`FILLS_GAPS_ALONE`).
 
     ``weighted``: each donor counts in the fit in inverse proportion to the variance of
     its distance to j (``1 / spread²``: the weighted least squares of donors whose
@@ -347,10 +352,9 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
     if groups.shape[1] != 3:
         return None
     out = linear_fill(matrix, observed)
-    spans = np.array([(j, a, b) for j, a, b in interior_gaps(observed, groups)
-                      + end_gaps(observed, groups)
-                      if b - a >= min_gap and (only is None or (j, a, b) in only)],
-                     dtype=np.int64).reshape(-1, 3)
+    gaps = [(j, a, b) for j, a, b in interior_gaps(observed, groups) if b - a >= min_gap]
+    spans = np.array([gap for gap in gaps + end_gaps(observed, groups)
+                      if only is None or gap in only], dtype=np.int64).reshape(-1, 3)
     if not spans.size:
         return out
     P, shift, _, chosen, spread = _rigid_donors(matrix, observed, spans, donors, centre)
@@ -830,8 +834,7 @@ def _blend_end_gaps(out: np.ndarray, fills: list[np.ndarray | None],
 
     The outlier rule is the interior gaps' (:func:`_without_outliers`), over the distinct
     fills: at an open end several candidates give one fill (the splines and the
-    regression fill hold the last sample there, as the rigid fills do on end gaps under
-    MIN_MODEL_GAP frames), and with them counted apart the
+    regression fill hold the last sample there), and with them counted apart the
     typical distance from the median fill was 0, which turned the rule off. A TrNN fill
     0.65 (unit RMS) off where the others erred 0.001–0.06 kept a fifth of the weight so
     (10_01, 10 frames, seed 5: 14 mm). On shorter end gaps, where fills agree closely, the
