@@ -1,9 +1,10 @@
 """Errors of the default's candidates on end gaps (gaps touching the clip's first or last
-frame), which ``--ends extrapolate`` fills with the default method's TrNN candidate.
+frame), which ``--ends extrapolate`` fills.
 
 Per-coordinate RMS error (mm) on the end-gap samples / the interior gap samples, seeds 1
-and 2, each candidate run alone on the unit-RMS clip as the blend runs it, and the default
-method's fill (``complete_matrix``, every gap filled). Cases: the
+and 2, of some candidates run alone on the unit-RMS clip as the blend runs them (TrNN,
+Gaussian, TSMC, PCA, the six-donor rigid fill), and of the default method's fill
+(``complete_matrix``, every gap filled). Cases: the
 paper's random loss (``mr 0.6``), or ``end L``: 5 random markers hidden over the first or
 last L frames. Needs ../shared/data/cmu. Example (docs/results.md, thirty-fifth session):
 
@@ -53,7 +54,8 @@ def gapped(truth, kind: str, value: float, seed: int):
     return truth.with_positions(positions, observed)
 
 
-CASES = "10_01 end 10,85_02 end 60,02_05 end 60,85_12 end 240,10_01 mr 0.6,02_05 mr 0.6,85_02 mr 0.6"
+CASES = ("10_01 end 10,85_02 end 60,02_05 end 60,85_12 end 240,10_01 mr 0.6,02_05 mr 0.6,"
+         "85_02 mr 0.6")
 
 
 def end_and_interior(observed: np.ndarray, seen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -94,7 +96,9 @@ def main(clip: str, kind: str, value: float) -> None:
         ends, inside = end_and_interior(observed, seen)
         short_runs_first = gapwise.ShortRunsFirst()
         candidates = {"trnn": complete_lowrank, "gaussian": gaussian_fill, "tsmc": tsmc,
-                      "pca": short_runs_first(partial(pca_fill, centre=centre))}
+                      "pca": short_runs_first(partial(pca_fill, centre=centre)),
+                      "rigid6": short_runs_first(partial(gapwise.rigid_fill, centre=centre,
+                                                         donors=6, weighted=True))}
         line = []
         fills = {name: scale.inverse(fill(X, observed)) for name, fill in candidates.items()}
         fills["default"] = complete_matrix(M, observed, "trnn")
