@@ -311,8 +311,8 @@ def distance_spread(P: np.ndarray, seen: np.ndarray, *, rows: Sequence[int] | No
 
 def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
                min_gap: int = MIN_MODEL_GAP, only: frozenset | None = None,
-               centre: np.ndarray | None = None, weighted: bool = False
-               ) -> np.ndarray | None:
+               centre: np.ndarray | None = None, weighted: bool = False,
+               ends: bool = True) -> np.ndarray | None:
     """Rigid-body fill: move the marker with its most rigidly attached visible markers.
 
     For a gap [a, b) of marker j, the ``donors`` markers observed on [a−1, b] whose
@@ -322,15 +322,18 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
     blended linearly so the fill meets both ends exactly. Interior gaps shorter than
     ``min_gap`` and gaps without three donors get a linear fill (held at an end).
 
-    A gap at the clip's start or end (filled where ``--ends extrapolate`` asks), of any
-    length, is carried from its one seen side alone, with donors seen there and all
-    through it. It held the last sample before, as the splines do, and a moving limb ran
-    off it. Measured (``scripts/end_gaps.py sums``, thirty-seventh session; summed end-gap
-    errors in mm, session start → end gaps of 5 frames or more → every end gap): 5 markers
-    hidden over a clip's first or last 10–240 frames and random loss, seeds 1–2 77.7 →
-    61.3 → 45.6, held-out seeds 6–8 110.2 → 87.5 → 76.6; the paper's random loss alone (12
-    cells, seeds 1–3) 94.5 → 91.7 → 50.0, most of it from 1–4-frame end gaps, where a
-    held sample lags the marker by the frames it missed.
+    With ``ends``, a gap at the clip's start or end (filled where ``--ends extrapolate``
+    asks), of any length, is carried from its one seen side alone, with donors seen there
+    and all through it. It held the last sample before, as the splines do, and a moving
+    limb ran off it. Measured (``scripts/end_gaps.py sums``, thirty-seventh session;
+    summed end-gap errors in mm, session start → end gaps of 5 frames or more → every end
+    gap): 5 markers hidden over a clip's first or last 10–240 frames and random loss,
+    seeds 1–2 77.7 → 61.3 → 45.6, held-out seeds 6–8 110.2 → 87.5 → 76.6; the paper's
+    random loss alone (12 cells, seeds 1–3) 94.5 → 91.7 → 50.0, most of it from 1–4-frame
+    end gaps, where a held sample lags the marker by the frames it missed. Without
+    ``ends`` (where the end fills are not used) end gaps are held: the windows of a long
+    clip fill their inner edges' gaps from their most weighted candidate, and those fills
+    are blended into the clip's interior.
 
     None when the rows are not markers. With ``only`` (a set of (marker, start, stop)),
     other gaps keep the linear fill (:data:`FILLS_GAPS_ALONE`).
@@ -353,8 +356,10 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
         return None
     out = linear_fill(matrix, observed)
     gaps = [(j, a, b) for j, a, b in interior_gaps(observed, groups) if b - a >= min_gap]
-    spans = np.array([gap for gap in gaps + end_gaps(observed, groups)
-                      if only is None or gap in only], dtype=np.int64).reshape(-1, 3)
+    if ends:
+        gaps += end_gaps(observed, groups)
+    spans = np.array([gap for gap in gaps if only is None or gap in only],
+                     dtype=np.int64).reshape(-1, 3)
     if not spans.size:
         return out
     P, shift, _, chosen, spread = _rigid_donors(matrix, observed, spans, donors, centre)

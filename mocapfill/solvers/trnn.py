@@ -597,7 +597,9 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
     # by how the fill fares beside it with the gap's own donors (blend's local_checks).
     rigid_forms = {"rigid": {}, "rigid6": {"donors": 6, "weighted": True}} if markers else {}
     for name, options in rigid_forms.items():
-        candidates[name] = short_runs_first(partial(rigid_fill, centre=centre, **options))
+        # (end gaps carried only where their fills are used: see rigid_fill's ``ends``)
+        candidates[name] = short_runs_first(partial(rigid_fill, centre=centre,
+                                                    ends=bool(validate_ends), **options))
     if tsmc_offered(observed):
         candidates["tsmc"] = tsmc_fill
     if markers and pca_offered(observed, groups):

@@ -867,6 +867,38 @@ def test_rigid_fill_carries_an_end_gap_with_its_body_from_the_one_seen_side():
             else:
                 np.testing.assert_array_equal(filled[rows, a:b], held[rows, a:b])
         np.testing.assert_array_equal(filled[observed], matrix[observed])
+        # Told the end fills will not be used, it holds them, as before.
+        unused = rigid_fill(matrix, observed, donors=donors, weighted=weighted, ends=False)
+        for marker, a, b in gaps:
+            rows = slice(3 * marker, 3 * marker + 3)
+            expected = held if a == 0 or b == n else filled
+            np.testing.assert_array_equal(unused[rows, a:b], expected[rows, a:b])
+
+
+def test_the_default_carries_end_gaps_rigidly_only_where_their_fills_are_used(monkeypatch):
+    # A window of a long clip has end gaps at its inner edges; under ``--ends leave`` its
+    # most weighted candidate fills them and the clip blends that in (an audit: a rigid
+    # carry there moved 570 interior samples of a windowed clip). So the rigid candidates
+    # carry end gaps only where the end fills are validated and used.
+    from mocapfill.solvers import gapwise, trnn
+
+    asked = []
+    original = gapwise.rigid_fill
+
+    def recording(matrix, observed, **options):
+        asked.append(options["ends"])
+        return original(matrix, observed, **options)
+
+    monkeypatch.setattr(gapwise, "rigid_fill", recording)
+    monkeypatch.setenv("MOCAPFILL_THREADS", "1")
+    n = 300
+    truth = _turning_body(5, n, 0.9, 0.6, 80.0, bob=15.0)
+    observed = _mask(6, n, [(0, 0, 20), (1, 100, 130), (2, 280, 300)])
+    matrix = np.where(observed, truth, 0.0)
+    for validate in (False, True, (True, False)):
+        asked.clear()
+        trnn.complete(matrix, observed, validate_ends=validate)
+        assert asked and set(asked) == {bool(validate)}
 
 
 def test_an_end_gaps_own_stand_in_asks_the_rigid_fill_for_the_gap_that_holds_it(
