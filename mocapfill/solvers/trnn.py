@@ -611,7 +611,7 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
         # windows of long clips get a smaller one (see WINDOW_PCA_MODELS).
         candidates["pca"] = short_runs_first(
             partial(pca, max_models=WINDOW_PCA_MODELS if skip_unweighted else PCA_MODELS,
-                    centre=centre))
+                    centre=centre, ends=bool(validate_ends)))
     names = tuple(candidates)
     checks = {name: partial(_rigid_tried_beside, short_runs_first, matrix, observed,
                             centre=centre, **options)

@@ -337,3 +337,30 @@ def test_models_up_to_gram_columns_keep_the_gram_matrix_whatever_their_frames(
     sizes = _eigh_sizes(monkeypatch)
     pca.complete(masked(M, observed), observed)
     assert 3 * 41 == pca.GRAM_COLUMNS and max(sizes) == pca.GRAM_COLUMNS
+
+
+def test_gap_fill_joins_a_long_end_gap_to_the_sample_beside_it():
+    # The blend's PCA candidate adds to an end gap of MIN_MODEL_GAP frames or more the
+    # offset between the data and the model's prediction on the one frame seen beside
+    # it, all along the gap; shorter end gaps, and every end gap where the end fills are
+    # not used (``ends=False``), keep the model's prediction, as ``complete`` gives it.
+    from mocapfill.solvers.gapwise import MIN_MODEL_GAP
+
+    M = coupled_markers(3)
+    n = M.shape[1]
+    observed = np.ones(M.shape, dtype=bool)
+    observed[-3:, n - 40:] = False                        # a long end gap
+    observed[-6:-3, :MIN_MODEL_GAP - 1] = False          # a short one
+    observed[-9:-6, 200:260] = False                     # an interior gap
+    plain = pca.complete(masked(M, observed), observed)
+    joined = pca.gap_fill(masked(M, observed), observed)
+    unjoined = pca.gap_fill(masked(M, observed), observed, ends=False)
+    shift = joined[-3:, n - 40:] - plain[-3:, n - 40:]
+    assert np.abs(shift).max() > 1e-6
+    np.testing.assert_allclose(shift, shift[:, :1].repeat(40, axis=1), atol=1e-12)
+    np.testing.assert_array_equal(unjoined[-3:, n - 40:], plain[-3:, n - 40:])
+    for fill in (joined, unjoined):
+        np.testing.assert_array_equal(fill[-6:-3, :MIN_MODEL_GAP - 1],
+                                      plain[-6:-3, :MIN_MODEL_GAP - 1])
+        np.testing.assert_array_equal(fill[observed], M[observed])
+    np.testing.assert_array_equal(joined[-9:-6, 200:260], unjoined[-9:-6, 200:260])
