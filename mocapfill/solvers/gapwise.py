@@ -312,7 +312,7 @@ def distance_spread(P: np.ndarray, seen: np.ndarray, *, rows: Sequence[int] | No
 def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
                min_gap: int = MIN_MODEL_GAP, only: frozenset | None = None,
                centre: np.ndarray | None = None, weighted: bool = False,
-               ends: bool = True) -> np.ndarray | None:
+               ends: bool | tuple[bool, bool] = True) -> np.ndarray | None:
     """Rigid-body fill: move the marker with its most rigidly attached visible markers.
 
     For a gap [a, b) of marker j, the ``donors`` markers observed on [a−1, b] whose
@@ -333,7 +333,9 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
     end gaps, where a held sample lags the marker by the frames it missed. Without
     ``ends`` (where the end fills are not used) end gaps are held: the windows of a long
     clip fill their inner edges' gaps from their most weighted candidate, and those fills
-    are blended into the clip's interior.
+    are blended into the clip's interior. ``ends`` may name one end, as a (start, end)
+    pair (:func:`end_sides`): a window holding one of the clip's ends carries the gaps
+    there and holds those at its inner edge.
 
     None when the rows are not markers. With ``only`` (a set of (marker, start, stop)),
     other gaps keep the linear fill (:data:`FILLS_GAPS_ALONE`).
@@ -356,8 +358,8 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
         return None
     out = linear_fill(matrix, observed)
     gaps = [(j, a, b) for j, a, b in interior_gaps(observed, groups) if b - a >= min_gap]
-    if ends:
-        gaps += end_gaps(observed, groups)
+    sides = end_sides(ends)
+    gaps += [(j, a, b) for j, a, b in end_gaps(observed, groups) if sides[a != 0]]
     spans = np.array([gap for gap in gaps if only is None or gap in only],
                      dtype=np.int64).reshape(-1, 3)
     if not spans.size:
@@ -749,6 +751,13 @@ def end_gaps(observed: np.ndarray, groups: np.ndarray) -> list[tuple[int, int, i
     return [(g, a, b) for g, rows in enumerate(groups)
             for a, b in missing_runs(observed[rows[0]])
             if (a == 0) != (b == n)]
+
+
+def end_sides(ends: bool | tuple[bool, bool]) -> tuple[bool, bool]:
+    """Which of the clip's ends, (start, end), ``ends`` names: one flag for both, or a
+    pair (a window of a long clip holds one of the clip's ends or neither; its other
+    edges' gaps are not the clip's)."""
+    return (ends, ends) if isinstance(ends, bool) else (bool(ends[0]), bool(ends[1]))
 
 
 END_STAND_INS = 2
@@ -1548,7 +1557,7 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     # windows holding the clip's ends in full where their fills are used, and says which
     # ends are the clip's: ``validate_ends``), drawn from their own generator
     # so that the interior stand-ins are those drawn without them.
-    sides = (validate_ends, validate_ends) if isinstance(validate_ends, bool) else validate_ends
+    sides = end_sides(validate_ends)
     ends = ([(g, a, b) for g, a, b in end_gaps(observed, groups) if sides[0 if a == 0 else 1]]
             if any(sides) and validation is None and not optional else [])
 

@@ -284,7 +284,8 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
                  min_frames: int, mm_weight: float, min_cum_sv: float,
                  transform: str, words: np.ndarray, bits: np.ndarray,
                  max_models: int | None = None, edges: bool = False,
-                 end_edges: bool = False, moments: _Moments | None = None) -> np.ndarray:
+                 end_edges: tuple[bool, bool] = (False, False),
+                 moments: _Moments | None = None) -> np.ndarray:
     """Predictions of marker i on its gap frames, (frames, 3), NaN elsewhere. ``words`` is
     ``_bit_rows(mask)``, every frame's visible markers, and ``bits`` each marker's bit
     (both the same for every marker of the clip).
@@ -293,8 +294,9 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
     each interior gap, by the model that filled the gap's frame beside it, where that
     model's predictors are observed there (NaN elsewhere, and beside frames filled by the
     linear backup, which meets the data already): :func:`gap_fill` joins the fill to the
-    data with the offsets there. With ``end_edges`` too, the prediction on the observed
-    frame beside each end gap. The gap frames' predictions are the same either way."""
+    data with the offsets there. With ``end_edges`` (start, end) too, the prediction on
+    the observed frame beside each end gap that :func:`gap_fill` joins there
+    (:func:`_joined_end`). The gap frames' predictions are the same either way."""
     k, n = mask.shape
     others = np.array([j for j in range(k) if j != i], dtype=int)
     mask_others = mask[others]
@@ -375,9 +377,8 @@ def _fill_marker(X: np.ndarray, mask: np.ndarray, i: int, weights: np.ndarray,
             continue
         fill[frames] = backup_i[:, frames].T
     if edges:
-        runs = np.array([run for run in missing_runs(obs_i)
-                         if (0 < run[0] and run[1] < n)
-                         or (end_edges and (run[0] == 0) != (run[1] == n))],
+        runs = np.array([(a, b) for a, b in missing_runs(obs_i)
+                         if (0 < a and b < n) or _joined_end(a, b, n, end_edges)],
                         dtype=np.int64).reshape(-1, 2)
         left, right = runs[runs[:, 0] > 0], runs[runs[:, 1] < n]   # (a seen frame beside)
         edge = np.concatenate([left[:, 0] - 1, right[:, 1]])
@@ -440,8 +441,16 @@ def complete(matrix: np.ndarray, observed: np.ndarray, *, weight_scale: float = 
                      transform=transform, max_models=max_models, join=False, centre=centre)
 
 
-def gap_fill(matrix: np.ndarray, observed: np.ndarray, *, ends: bool = True,
-             **options) -> np.ndarray:
+def _joined_end(a: int, b: int, n: int, sides: tuple[bool, bool]) -> bool:
+    """Whether :func:`gap_fill` joins the gap [a, b) of an n-frame clip as an end gap: one
+    touching an end named in ``sides`` (start, end), of ``MIN_MODEL_GAP`` frames or more."""
+    from .gapwise import MIN_MODEL_GAP
+
+    return (a == 0) != (b == n) and sides[a != 0] and b - a >= MIN_MODEL_GAP
+
+
+def gap_fill(matrix: np.ndarray, observed: np.ndarray, *,
+             ends: bool | tuple[bool, bool] = True, **options) -> np.ndarray:
     """The PCA fill as a candidate of the per-gap blend (:mod:`.gapwise`): :func:`complete`
     with every interior gap joined to the samples just outside it (and, with ``ends``,
     every end gap of ``MIN_MODEL_GAP`` frames or more to the sample beside it).
@@ -463,16 +472,22 @@ def gap_fill(matrix: np.ndarray, observed: np.ndarray, *, ends: bool = True,
     (49.97 → 51.13); an offset fading over 10 or 100 frames did worse than a constant one.
     Without ``ends`` (where the end fills are not used) end gaps are not joined: the
     windows of a long clip may fill their inner edges' gaps with this candidate's fill.
+    ``ends`` may name one end, as a (start, end) pair
+    (:func:`~mocapfill.solvers.gapwise.end_sides`: a window holding one of the clip's
+    ends).
     """
+    from .gapwise import end_sides
+
     matrix, observed = as_problem(matrix, observed)
-    return _complete(matrix, observed, **options, join=True, join_ends=ends)
+    return _complete(matrix, observed, **options, join=True, join_ends=end_sides(ends))
 
 
 def _complete(matrix: np.ndarray, observed: np.ndarray, *, weight_scale: float = 0.3,
               mm_weight: float = 0.02, distal_threshold: float = 0.5,
               min_cum_sv: float = 0.99, min_frames: int = 10,
               subtract_mean_trajectory: bool = True, transform: str = "published",
-              max_models: int | None = None, join: bool = False, join_ends: bool = False,
+              max_models: int | None = None, join: bool = False,
+              join_ends: tuple[bool, bool] = (False, False),
               centre: np.ndarray | None = None) -> np.ndarray:
     matrix, observed = as_problem(matrix, observed)
     m, n = matrix.shape
@@ -525,12 +540,13 @@ def _complete(matrix: np.ndarray, observed: np.ndarray, *, weight_scale: float =
                             backup[i], min_frames=min_frames,
                             max_models=max_models, words=words, bits=bits,
                             mm_weight=mm_weight, min_cum_sv=min_cum_sv, transform=transform,
-                            edges=join, end_edges=join and join_ends, moments=moments)
+                            edges=join, end_edges=join_ends if join else (False, False),
+                            moments=moments)
         gap = ~mask[i]
         rows = slice(3 * i, 3 * i + 3)
         values = fill.T + mean_traj
         if join:
-            from .gapwise import MIN_MODEL_GAP, ramp
+            from .gapwise import ramp
 
             # The ramp of the offsets (data − prediction) beside each interior gap, 0
             # where there is no prediction.
@@ -538,7 +554,7 @@ def _complete(matrix: np.ndarray, observed: np.ndarray, *, weight_scale: float =
             for a, b in missing_runs(mask[i]):
                 if a > 0 and b < n:
                     values[:, a:b] += ramp(offset[:, a - 1], offset[:, b], b - a)
-                elif join_ends and b - a >= MIN_MODEL_GAP and (a == 0) != (b == n):
+                elif _joined_end(a, b, n, join_ends):
                     values[:, a:b] += offset[:, a - 1 if a > 0 else b][:, None]
         out[rows, gap] = np.where(observed[rows, gap], out[rows, gap], values[:, gap])
     return out

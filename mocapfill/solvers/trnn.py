@@ -599,7 +599,7 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
     for name, options in rigid_forms.items():
         # (end gaps carried only where their fills are used: see rigid_fill's ``ends``)
         candidates[name] = short_runs_first(partial(rigid_fill, centre=centre,
-                                                    ends=bool(validate_ends), **options))
+                                                    ends=validate_ends, **options))
     if tsmc_offered(observed):
         candidates["tsmc"] = tsmc_fill
     if markers and pca_offered(observed, groups):
@@ -611,7 +611,7 @@ def complete_window(matrix: np.ndarray, observed: np.ndarray, *,
         # windows of long clips get a smaller one (see WINDOW_PCA_MODELS).
         candidates["pca"] = short_runs_first(
             partial(pca, max_models=WINDOW_PCA_MODELS if skip_unweighted else PCA_MODELS,
-                    centre=centre, ends=bool(validate_ends)))
+                    centre=centre, ends=validate_ends))
     names = tuple(candidates)
     checks = {name: partial(_rigid_tried_beside, short_runs_first, matrix, observed,
                             centre=centre, **options)

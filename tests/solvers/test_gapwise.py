@@ -867,12 +867,16 @@ def test_rigid_fill_carries_an_end_gap_with_its_body_from_the_one_seen_side():
             else:
                 np.testing.assert_array_equal(filled[rows, a:b], held[rows, a:b])
         np.testing.assert_array_equal(filled[observed], matrix[observed])
-        # Told the end fills will not be used, it holds them, as before.
-        unused = rigid_fill(matrix, observed, donors=donors, weighted=weighted, ends=False)
-        for marker, a, b in gaps:
-            rows = slice(3 * marker, 3 * marker + 3)
-            expected = held if a == 0 or b == n else filled
-            np.testing.assert_array_equal(unused[rows, a:b], expected[rows, a:b])
+        # Told the end fills will not be used, it holds them, as before; told that one
+        # end only is the clip's (a window of a long clip), it carries the gaps there.
+        for ends in (False, (True, False), (False, True)):
+            unused = rigid_fill(matrix, observed, donors=donors, weighted=weighted,
+                                ends=ends)
+            for marker, a, b in gaps:
+                rows = slice(3 * marker, 3 * marker + 3)
+                carried = ends and ends[a != 0] if a == 0 or b == n else True
+                expected = filled if carried else held
+                np.testing.assert_array_equal(unused[rows, a:b], expected[rows, a:b])
 
 
 def test_the_default_carries_end_gaps_rigidly_only_where_their_fills_are_used(monkeypatch):
@@ -880,7 +884,8 @@ def test_the_default_carries_end_gaps_rigidly_only_where_their_fills_are_used(mo
     # most weighted candidate fills them and the clip blends that in (an audit: a rigid
     # carry there moved 570 interior samples of a windowed clip). So the rigid candidates
     # carry end gaps, and the PCA candidate joins them to the data, only where the end
-    # fills are validated and used.
+    # fills are validated and used: a window holding one of the clip's ends, at that end
+    # only (its inner edge's gaps are not the clip's).
     from mocapfill.solvers import gapwise, pca, trnn
 
     asked = []
@@ -901,7 +906,7 @@ def test_the_default_carries_end_gaps_rigidly_only_where_their_fills_are_used(mo
     for validate in (False, True, (True, False)):
         asked.clear()
         trnn.complete(matrix, observed, validate_ends=validate)
-        assert len(asked) >= 6 and set(asked) == {bool(validate)}    # 3 candidates, 2 runs
+        assert len(asked) >= 6 and set(asked) == {validate}    # 3 candidates, 2 runs
 
 
 def test_an_end_gaps_own_stand_in_asks_the_rigid_fill_for_the_gap_that_holds_it(

@@ -359,6 +359,11 @@ def test_gap_fill_joins_a_long_end_gap_to_the_sample_beside_it():
     assert np.abs(shift).max() > 1e-6
     np.testing.assert_allclose(shift, shift[:, :1].repeat(40, axis=1), atol=1e-12)
     np.testing.assert_array_equal(unjoined[-3:, n - 40:], plain[-3:, n - 40:])
+    # Told one end only is the clip's (a window of a long clip), it joins the gaps there.
+    np.testing.assert_array_equal(
+        pca.gap_fill(masked(M, observed), observed, ends=(False, True)), joined)
+    np.testing.assert_array_equal(
+        pca.gap_fill(masked(M, observed), observed, ends=(True, False)), unjoined)
     for fill in (joined, unjoined):
         np.testing.assert_array_equal(fill[-6:-3, :MIN_MODEL_GAP - 1],
                                       plain[-6:-3, :MIN_MODEL_GAP - 1])
