@@ -358,8 +358,7 @@ def rigid_fill(matrix: np.ndarray, observed: np.ndarray, *, donors: int = 3,
         return None
     out = linear_fill(matrix, observed)
     gaps = [(j, a, b) for j, a, b in interior_gaps(observed, groups) if b - a >= min_gap]
-    sides = end_sides(ends)
-    gaps += [(j, a, b) for j, a, b in end_gaps(observed, groups) if sides[a != 0]]
+    gaps += end_gaps(observed, groups, ends)
     spans = np.array([gap for gap in gaps if only is None or gap in only],
                      dtype=np.int64).reshape(-1, 3)
     if not spans.size:
@@ -745,12 +744,15 @@ def pseudo_gaps(observed: np.ndarray, gapset: GapSet, rng: np.random.Generator, 
     return chosen
 
 
-def end_gaps(observed: np.ndarray, groups: np.ndarray) -> list[tuple[int, int, int]]:
-    """Gaps touching the clip's first or last frame (not a group missing throughout)."""
+def end_gaps(observed: np.ndarray, groups: np.ndarray,
+             ends: bool | tuple[bool, bool] = True) -> list[tuple[int, int, int]]:
+    """Gaps touching the clip's first or last frame (not a group missing throughout), at
+    the ends ``ends`` names (:func:`end_sides`)."""
     n = observed.shape[1]
+    sides = end_sides(ends)
     return [(g, a, b) for g, rows in enumerate(groups)
             for a, b in missing_runs(observed[rows[0]])
-            if (a == 0) != (b == n)]
+            if (a == 0) != (b == n) and sides[a != 0]]
 
 
 def end_sides(ends: bool | tuple[bool, bool]) -> tuple[bool, bool]:
@@ -1557,9 +1559,8 @@ def blend(matrix: np.ndarray, observed: np.ndarray, candidates: dict[str, Candid
     # windows holding the clip's ends in full where their fills are used, and says which
     # ends are the clip's: ``validate_ends``), drawn from their own generator
     # so that the interior stand-ins are those drawn without them.
-    sides = end_sides(validate_ends)
-    ends = ([(g, a, b) for g, a, b in end_gaps(observed, groups) if sides[0 if a == 0 else 1]]
-            if any(sides) and validation is None and not optional else [])
+    ends = (end_gaps(observed, groups, validate_ends)
+            if any(end_sides(validate_ends)) and validation is None and not optional else [])
 
     errors: dict[int, list[Evidence]] = {}
     own: dict[int, list[Evidence]] = {}        # real gap index -> its stand-ins' evidence

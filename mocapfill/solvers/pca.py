@@ -540,8 +540,7 @@ def _complete(matrix: np.ndarray, observed: np.ndarray, *, weight_scale: float =
                             backup[i], min_frames=min_frames,
                             max_models=max_models, words=words, bits=bits,
                             mm_weight=mm_weight, min_cum_sv=min_cum_sv, transform=transform,
-                            edges=join, end_edges=join_ends if join else (False, False),
-                            moments=moments)
+                            edges=join, end_edges=join_ends, moments=moments)
         gap = ~mask[i]
         rows = slice(3 * i, 3 * i + 3)
         values = fill.T + mean_traj
